@@ -1,0 +1,39 @@
+"""Shared command-line plumbing: readable errors instead of tracebacks for user mistakes."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import readjax  # noqa: F401  (XLA flags before jax is imported)
+from readjax.data.store import DatasetError
+from readjax.tasks import UnknownTaskError
+
+USER_ERRORS = (ValueError, FileNotFoundError, DatasetError, UnknownTaskError)
+
+
+def run(main, argv=None) -> int:
+    """Call ``main(argv)``; user errors print one line on stderr and exit with status 2."""
+    try:
+        main(argv)
+    except USER_ERRORS as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted; re-run the same command to resume", file=sys.stderr)
+        return 130
+    return 0
+
+
+def positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    pass

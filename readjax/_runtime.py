@@ -1,0 +1,60 @@
+"""Process-wide JAX set-up that must happen before the first trace.
+
+Why this exists (measured, see BENCHMARKS.md and ../shared/STACK.md):
+* XLA's CPU fusion emitters make MJX 250-1000x slower, so they are switched off through
+  ``XLA_FLAGS`` *before* jax is imported.
+* jaxlib's batched LAPACK Cholesky deadlocks at batch ~128 on the CPU; MJX calls
+  ``jax.scipy.linalg.cho_factor``/``cho_solve`` for the mass matrix, the implicitfast integrator
+  and the Newton solver. On the CPU backend we route both through :mod:`readjax.linalg`, a
+  pure-jnp Cholesky, so the lowered programs hold no LAPACK call.
+* Compiles take 15-70 s each, so a persistent compilation cache is on by default.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+
+_CPU_FLAG = "--xla_cpu_use_fusion_emitters=false"
+
+
+def configure_xla_flags() -> None:
+    """Append the CPU fusion-emitter flag to XLA_FLAGS (idempotent)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_use_fusion_emitters" not in flags:
+        os.environ["XLA_FLAGS"] = (flags + " " + _CPU_FLAG).strip()
+    if "jax" in sys.modules and "xla_cpu_use_fusion_emitters" not in flags:
+        warnings.warn(
+            "jax was imported before readjax; XLA_FLAGS=--xla_cpu_use_fusion_emitters=false may not "
+            "take effect and MJX can be 100x slower on the CPU. Import readjax first or export the flag.",
+            stacklevel=3,
+        )
+
+
+def configure_gl() -> None:
+    """Headless OpenGL for mujoco.Renderer (must be chosen before mujoco is imported)."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    if os.environ["MUJOCO_GL"] in ("egl", "osmesa"):
+        os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+
+
+def default_cache_dir() -> str:
+    return os.environ.get(
+        "READJAX_JAX_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "readjax", "jax")
+    )
+
+
+def configure_jax() -> None:
+    """Persistent compilation cache and the CPU Cholesky replacement."""
+    import jax
+
+    cache = default_cache_dir()
+    if cache and cache.lower() != "off":
+        os.makedirs(cache, exist_ok=True)
+        jax.config.update("jax_compilation_cache_dir", cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+        jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    from readjax import linalg
+
+    linalg.install_cpu_cholesky()

@@ -1,0 +1,1 @@
+"""Demonstration data: the motion format, resampling, the dataset store, batched generation."""

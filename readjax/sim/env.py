@@ -1,0 +1,205 @@
+"""The task-environment layer: pure ``reset``/``step`` over MJX, in the style of MuJoCo Playground.
+
+A task subclasses :class:`TaskEnv` and supplies data (its MJCF file, graspable bodies,
+recolourable geoms, the durations of its expert's segments) and four pure functions:
+``sample_scene`` (randomisation), ``expert_plan`` (scripted waypoints), ``update_progress``
+(memory the success predicate needs, e.g. "was the knife on the board before release") and
+``is_success`` / ``is_failure``. Everything else — physics substeps, gripper ramp, grasp
+attachment, pinned fixtures, success bookkeeping — is shared here.
+
+Fixtures placed per episode (a button base, a box, a rack) are bodies with a free joint listed
+in ``fixtures``: their pose comes from the scene's qpos and is pinned there after every
+substep. (MJX applies mocap poses after its kinematic tree pass, so children of a mocap body
+do not follow it; mocap bodies are used only for childless fixtures such as RT's spheres.) The ``mjx.Model`` is closed over, never
+passed to jit (hashing its numpy fields costs ~5 ms a call; ../shared/STACK.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+from jax import lax
+
+from readjax.sim import mjx
+from readjax.sim.controller import WaypointPlan
+from readjax.sim.grasp import GraspSpec, GraspState
+from readjax.sim.kinematics import FINGER_JOINTS, FINGER_MAX, HOME_Q, chain_from_model
+from readjax.sim.scene import load_model
+
+GRIPPER_SPEED = 0.1  # m/s per finger: an instant close tunnels through thin walls
+
+
+@struct.dataclass
+class Scene:
+    """Everything random about an episode, sampled from its seed."""
+
+    qpos: jax.Array  # (nq,) initial joint positions (arm at home, objects placed)
+    mocap_pos: jax.Array  # (nmocap, 3) fixtures (button base, box, ...) as mocap bodies
+    mocap_quat: jax.Array  # (nmocap, 4)
+    rgba: jax.Array  # (len(recolour_geoms), 4) per-episode colours (rendering only)
+    params: dict[str, jax.Array]  # task-specific values (targets, choices)
+
+
+@struct.dataclass
+class EnvState:
+    data: Any  # mjx.Data
+    scene: Scene
+    grasp: GraspState
+    progress: dict[str, jax.Array]
+    success: jax.Array  # () bool: the success condition held at some control step
+    failure: jax.Array  # () bool: a terminal failure happened (e.g. the wire was touched)
+    finger_target: jax.Array  # () current (ramped) finger position command
+    step: jax.Array  # () int32 control steps taken
+
+
+class TaskEnv:
+    """Base class of the 16 tasks. Subclasses set the class attributes and the hooks."""
+
+    name: ClassVar[str] = ""
+    code: ClassVar[str] = ""
+    xml: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    graspable: ClassVar[tuple[str, ...]] = ()
+    fixtures: ClassVar[tuple[str, ...]] = ()
+    recolour_geoms: ClassVar[tuple[str, ...]] = ()
+    expert_durations: ClassVar[tuple[int, ...]] = ()
+    substeps: ClassVar[int] = 4
+
+    def __init__(self):
+        self.mj_model = load_model(self.xml)
+        self.mx = mjx.put_model(self.mj_model)
+        self.chain = chain_from_model(self.mj_model)
+        self.grasp_spec = GraspSpec(self.mj_model, self.graspable)
+        m = self.mj_model
+        self.finger_qpos_adr = np.array([m.joint(j).qposadr[0] for j in FINGER_JOINTS], np.int32)
+        self.recolour_ids = np.array([m.geom(g).id for g in self.recolour_geoms], np.int32)
+        pin_q, pin_v = [], []
+        for body in self.fixtures:
+            b = m.body(body).id
+            jnt = m.body_jntadr[b]
+            if m.body_jntnum[b] < 1 or m.jnt_type[jnt] != mujoco.mjtJoint.mjJNT_FREE:
+                raise ValueError(f"fixture {body!r} needs a free joint as its first joint")
+            pin_q.extend(range(m.jnt_qposadr[jnt], m.jnt_qposadr[jnt] + 7))
+            pin_v.extend(range(m.jnt_dofadr[jnt], m.jnt_dofadr[jnt] + 6))
+        self.pinned_qpos_adr = np.array(pin_q, np.int32)
+        self.pinned_qvel_adr = np.array(pin_v, np.int32)
+        self._data0 = mjx.make_data(self.mx)
+        self.setup()
+
+    # ------------------------------------------------------------------ task hooks
+    def setup(self) -> None:
+        """Read ids of the task's bodies/geoms/joints from ``self.mj_model``."""
+
+    def sample_scene(self, key: jax.Array) -> Scene:
+        raise NotImplementedError
+
+    def expert_plan(self, scene: Scene) -> WaypointPlan:
+        raise NotImplementedError
+
+    def init_progress(self) -> dict[str, jax.Array]:
+        return {}
+
+    def update_progress(self, progress, data, grasp: GraspState, scene: Scene) -> dict[str, jax.Array]:
+        return progress
+
+    def is_success(self, progress, data, grasp: GraspState, scene: Scene) -> jax.Array:
+        raise NotImplementedError
+
+    def is_failure(self, progress, data, grasp: GraspState, scene: Scene) -> jax.Array:
+        return jnp.zeros((), bool)
+
+    # ------------------------------------------------------------------ helpers for tasks
+    @property
+    def control_dt(self) -> float:
+        return float(self.mj_model.opt.timestep) * self.substeps
+
+    @property
+    def episode_steps(self) -> int:
+        return int(sum(self.expert_durations))
+
+    def default_scene(self) -> Scene:
+        """The model's own initial configuration with the arm at home."""
+        m = self.mj_model
+        qpos = np.array(m.qpos0, np.float32)
+        qpos[self.chain.qpos_adr] = HOME_Q
+        qpos[self.finger_qpos_adr] = FINGER_MAX
+        mocap_body = np.flatnonzero(m.body_mocapid >= 0)
+        order = np.argsort(m.body_mocapid[mocap_body])
+        return Scene(
+            qpos=jnp.asarray(qpos),
+            mocap_pos=jnp.asarray(m.body_pos[mocap_body[order]], jnp.float32).reshape(m.nmocap, 3),
+            mocap_quat=jnp.asarray(m.body_quat[mocap_body[order]], jnp.float32).reshape(m.nmocap, 4),
+            rgba=jnp.asarray(m.geom_rgba[self.recolour_ids], jnp.float32).reshape(-1, 4),
+            params={},
+        )
+
+    def body_pos(self, data, body_id) -> jax.Array:
+        return data.xpos[body_id]
+
+    # ------------------------------------------------------------------ environment API
+    def reset(self, key: jax.Array) -> EnvState:
+        return self.reset_to(self.sample_scene(key))
+
+    def reset_to(self, scene: Scene) -> EnvState:
+        home_ctrl = jnp.concatenate([jnp.asarray(HOME_Q), jnp.full((2,), FINGER_MAX)])
+        d = self._data0.replace(
+            qpos=scene.qpos,
+            mocap_pos=scene.mocap_pos,
+            mocap_quat=scene.mocap_quat,
+            ctrl=home_ctrl,
+        )
+        d = mjx.forward(self.mx, d)
+        grasp = self.grasp_spec.init()
+        progress = self.init_progress()
+        state = EnvState(
+            data=d,
+            scene=scene,
+            grasp=grasp,
+            progress=progress,
+            success=jnp.zeros((), bool),
+            failure=jnp.zeros((), bool),
+            finger_target=jnp.asarray(FINGER_MAX, jnp.float32),
+            step=jnp.zeros((), jnp.int32),
+        )
+        return self._judge(state)
+
+    def step(self, state: EnvState, q_target: jax.Array, grip: jax.Array) -> EnvState:
+        """One control step: arm joint targets (7,) and gripper command (1 open, 0 closed)."""
+        g = state.grasp
+        close_cmd = grip < 0.5
+        goal = jnp.where(close_cmd, 0.0, FINGER_MAX)
+        goal = jnp.where(g.any & close_cmd, g.finger_hold, goal)
+        max_move = GRIPPER_SPEED * self.control_dt
+        finger = state.finger_target + jnp.clip(goal - state.finger_target, -max_move, max_move)
+        ctrl = jnp.concatenate([q_target, jnp.stack([finger, finger])])
+        d = state.data.replace(ctrl=ctrl)
+        spec, chain, mx = self.grasp_spec, self.chain, self.mx
+
+        pin_q, pin_v = self.pinned_qpos_adr, self.pinned_qvel_adr
+        pinned = state.scene.qpos[pin_q]
+
+        def substep(_, d):
+            d = mjx.step(mx, d)
+            qpos, qvel = spec.apply(g, chain, d.qpos, d.qvel)
+            if len(pin_q):
+                qpos, qvel = qpos.at[pin_q].set(pinned), qvel.at[pin_v].set(0.0)
+            return d.replace(qpos=qpos, qvel=qvel)
+
+        d = lax.fori_loop(0, self.substeps, substep, d)
+        contact = d._impl.contact
+        finger_open = jnp.mean(d.qpos[self.finger_qpos_adr])
+        grasp = spec.update(g, chain, d.qpos, contact.geom, contact.dist, close_cmd, finger_open)
+        state = state.replace(data=d, grasp=grasp, finger_target=finger, step=state.step + 1)
+        return self._judge(state)
+
+    def _judge(self, state: EnvState) -> EnvState:
+        progress = self.update_progress(state.progress, state.data, state.grasp, state.scene)
+        state = state.replace(progress=progress)
+        failure = state.failure | self.is_failure(progress, state.data, state.grasp, state.scene)
+        ok = self.is_success(progress, state.data, state.grasp, state.scene) & ~failure
+        return state.replace(success=state.success | ok, failure=failure)
