@@ -8,6 +8,7 @@ function of (task, split, episodes) and resuming an interrupted run reproduces i
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -58,8 +59,9 @@ def split_seeds(split: str, start: int, count: int) -> np.ndarray:
     return SPLITS[split] + np.arange(start, start + count, dtype=np.int64)
 
 
+@functools.cache
 def episode_fn(env):
-    """jit(vmap(reset -> expert rollout)) over a batch of integer seeds."""
+    """jit(vmap(reset -> expert rollout)) over a batch of integer seeds (one per env and process)."""
 
     def episode(seed):
         st0 = env.reset(jax.random.key(seed))
