@@ -19,14 +19,27 @@ import numpy as np
 _MJ_TO_CV = np.diag([1.0, -1.0, -1.0])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CameraParams:
-    """A fixed camera: ``intrinsics`` (3, 3) in pixels, ``cam_to_world`` (4, 4), image size."""
+    """A fixed camera: ``intrinsics`` (3, 3) in pixels, ``cam_to_world`` (4, 4), image size.
+
+    Hashable by value, so jitted functions can be cached per camera.
+    """
 
     intrinsics: np.ndarray
     cam_to_world: np.ndarray
     width: int
     height: int
+
+    def _key(self):
+        return (np.asarray(self.intrinsics, np.float64).round(9).tobytes(),
+                np.asarray(self.cam_to_world, np.float64).round(9).tobytes(), int(self.width), int(self.height))
+
+    def __hash__(self):
+        return hash(self._key())
+
+    def __eq__(self, other):
+        return isinstance(other, CameraParams) and self._key() == other._key()
 
     @property
     def rotation(self) -> np.ndarray:

@@ -37,6 +37,10 @@ class Trace(NamedTuple):
     grip: jax.Array  # (T,) measured gripper opening in [0, 1]
     success: jax.Array  # (T,) success reached so far
     ik_error: jax.Array  # (T,) position error of the IK command against its target (m)
+    ctrl: jax.Array  # (T, nu) actuator command applied during the step (replayable in C MuJoCo)
+    attached: jax.Array  # (T, n_graspable) grasp state after the step
+    rel_pos: jax.Array  # (T, n_graspable, 3) attached objects' pose in the tcp frame
+    rel_quat: jax.Array  # (T, n_graspable, 4)
 
 
 def segment_schedule(durations) -> tuple[np.ndarray, np.ndarray]:
@@ -87,8 +91,43 @@ def rollout(env, state, plan: WaypointPlan, durations, ik_iterations: int = 3):
             grip=grip_from_fingers(st.data.qpos[env.finger_qpos_adr]),
             success=st.success,
             ik_error=jnp.linalg.norm(p_cmd - p_t),
+            ctrl=st.data.ctrl,
+            attached=st.grasp.attached,
+            rel_pos=st.grasp.rel_pos,
+            rel_quat=st.grasp.rel_quat,
         )
         return (st, q_cmd), rec
 
     (state, _), trace = lax.scan(body, (state, q0), (pos, rot, grip))
     return state, trace
+
+
+def joint_targets(q_way: jax.Array, start_q: jax.Array, durations) -> jax.Array:
+    """Joint-space interpolation (smoothstep per segment) through waypoints: (T, 7) targets."""
+    seg, frac = segment_schedule(durations)
+    q_from = jnp.concatenate([start_q[None], q_way[:-1]])[seg]
+    a = smoothstep(jnp.asarray(frac))[:, None]
+    return q_from + a * (q_way[seg] - q_from)
+
+
+def rollout_joints(env, state, q_way: jax.Array, grip: jax.Array, durations):
+    """Execute joint-space waypoints (W, 7) with gripper commands (W,); returns (state, Trace)."""
+    q0 = state.data.qpos[env.chain.qpos_adr]
+    q_t = joint_targets(q_way, q0, durations)
+    seg, _ = segment_schedule(durations)
+    g_t = grip[seg]
+
+    def body(st, target):
+        q_cmd, g = target
+        st = env.step(st, q_cmd, g)
+        q_meas = st.data.qpos[env.chain.qpos_adr]
+        tp, tr = fk(env.chain, q_meas)
+        rec = Trace(
+            tcp_pos=tp, tcp_rot=tr, q=q_meas,
+            grip=grip_from_fingers(st.data.qpos[env.finger_qpos_adr]),
+            success=st.success, ik_error=jnp.zeros(()), ctrl=st.data.ctrl,
+            attached=st.grasp.attached, rel_pos=st.grasp.rel_pos, rel_quat=st.grasp.rel_quat,
+        )
+        return st, rec
+
+    return lax.scan(body, state, (q_t, g_t))

@@ -50,6 +50,11 @@ class SceneRenderer:
             self.model.geom_rgba[np.asarray(geom_ids)] = np.asarray(rgba).reshape(-1, 4)
         mujoco.mj_forward(self.model, self.data)
 
+    def render_data(self, data: mujoco.MjData) -> np.ndarray:
+        """RGB of another MjData of the same model (e.g. a replay in progress)."""
+        self._renderer.update_scene(data, camera=self.camera, scene_option=self._options)
+        return self._renderer.render().copy()
+
     def render(self, depth: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """RGB uint8 (H, W, 3) and depth in metres (H, W) of the current state."""
         self._renderer.disable_depth_rendering()

@@ -1,0 +1,24 @@
+# The two commands of the README: `make demo` (the main job) and `make test`.
+# Both set up a fresh machine first (apt GL libraries if missing, .venv, pinned packages).
+PY := .venv/bin/python
+export MUJOCO_GL ?= egl
+
+.PHONY: setup demo test test-slow bench gallery
+
+setup:
+	@bash scripts/setup.sh
+
+demo: setup
+	$(PY) -m experiments.demo
+
+test: setup
+	$(PY) -m pytest -q
+
+test-slow: setup
+	$(PY) -m pytest -q -m slow
+
+bench: setup
+	$(PY) -m experiments.bench sim --tasks all --batch-sizes 8 32 128
+
+gallery: setup
+	$(PY) -m experiments.gallery --out docs/
