@@ -1,0 +1,220 @@
+"""Training loop machinery shared by every model: train state, a jitted (donated, sharded) train
+step, orbax checkpoints that resume exactly, a JSONL metrics log and a loss-curve PNG.
+
+A model supplies ``loss_fn(params, batch, rng) -> (loss, metrics)`` and initial parameters; the data
+side supplies ``sample_batch(step) -> batch`` — a pure function of the step, so a run killed and
+resumed from its latest checkpoint sees exactly the batches an uninterrupted run would have seen
+(no step lost, none repeated). The batch is sharded over ``jax.devices()`` on its leading axis.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import orbax.checkpoint as ocp
+from flax import struct
+
+from readjax import provenance, sharding
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint is missing, corrupted, or belongs to another config/dataset."""
+
+
+@struct.dataclass
+class TrainState:
+    step: jax.Array
+    params: Any
+    opt_state: Any
+
+
+@dataclass(frozen=True)
+class StageSpec:
+    """What one training stage (e.g. "vae", "read") needs besides the model."""
+
+    steps: int
+    batch_size: int
+    lr: float = 1e-4
+    lr_decay: float = 1.0  # multiplied every lr_decay_every steps (staircase); 1 = constant
+    lr_decay_every: int = 5000
+    grad_clip: float = 1.0
+    ckpt_every: int = 500
+    log_every: int = 25
+    keep: int = 3
+    seed: int = 0
+
+
+def make_optimizer(spec: StageSpec) -> optax.GradientTransformation:
+    lr = optax.exponential_decay(spec.lr, spec.lr_decay_every, spec.lr_decay, staircase=True) \
+        if spec.lr_decay != 1.0 else spec.lr
+    return optax.chain(optax.clip_by_global_norm(spec.grad_clip), optax.adam(lr))
+
+
+def make_train_step(loss_fn: Callable, optimizer: optax.GradientTransformation, base_key: jax.Array):
+    """jit(train_step) with the state donated, batch sharded on axis 0, state replicated."""
+
+    def train_step(state: TrainState, batch):
+        rng = jax.random.fold_in(base_key, state.step)
+        (loss, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params, batch, rng)
+        updates, opt_state = optimizer.update(grads, state.opt_state, state.params)
+        params = optax.apply_updates(state.params, updates)
+        metrics = dict(metrics, loss=loss, grad_norm=optax.tree.norm(grads))
+        return TrainState(step=state.step + 1, params=params, opt_state=opt_state), metrics
+
+    return jax.jit(train_step, donate_argnums=(0,))
+
+
+class Stage:
+    """One training stage in ``run_dir/<name>/``: checkpoints/, metrics.jsonl, loss.png, stage.json."""
+
+    def __init__(self, run_dir: str | Path, name: str, spec: StageSpec, config: dict, fingerprint: str):
+        self.dir = Path(run_dir) / name
+        self.name, self.spec, self.config, self.fingerprint = name, spec, config, fingerprint
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self._check_identity()
+        options = ocp.CheckpointManagerOptions(max_to_keep=spec.keep, create=True,
+                                               enable_async_checkpointing=False)
+        self.manager = ocp.CheckpointManager(self.dir / "checkpoints", options=options,
+                                             item_names=("state",))
+
+    # -------------------------------------------------------------- identity
+    def _check_identity(self) -> None:
+        """Refuse to resume a stage trained on another dataset or config (nothing is touched)."""
+        f = self.dir / "stage.json"
+        meta = {"stage": self.name, "config": self.config, "dataset_fingerprint": self.fingerprint}
+        if f.exists():
+            try:
+                old = json.loads(f.read_text())
+            except json.JSONDecodeError as e:
+                raise CheckpointError(f"{f} is corrupted ({e}); move the run away or use a new --out") from e
+            if old.get("dataset_fingerprint") != self.fingerprint:
+                raise CheckpointError(
+                    f"{self.dir} was trained on dataset {old.get('dataset_fingerprint')}, not "
+                    f"{self.fingerprint}; use a new --out (or --restart to overwrite)")
+            if old.get("config") != self.config:
+                diff = sorted(k for k in set(old.get("config", {})) | set(self.config)
+                              if old.get("config", {}).get(k) != self.config.get(k))
+                raise CheckpointError(f"{self.dir} was trained with another config (differs in {diff}); "
+                                      f"use a new --out (or --restart to overwrite)")
+        else:
+            f.write_text(json.dumps(dict(meta, versions=provenance.versions()), indent=2, sort_keys=True))
+
+    # -------------------------------------------------------------- checkpoints
+    def latest_step(self) -> int | None:
+        return self.manager.latest_step()
+
+    def save(self, state: TrainState, force: bool = False) -> None:
+        step = int(state.step)
+        self.manager.save(step, args=ocp.args.Composite(state=ocp.args.StandardSave(state)), force=force)
+        self.manager.wait_until_finished()
+
+    def restore(self, template: TrainState, step: int | None = None) -> TrainState:
+        step = self.latest_step() if step is None else step
+        if step is None:
+            raise CheckpointError(f"no checkpoint in {self.dir / 'checkpoints'}")
+        abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, template)
+        try:
+            out = self.manager.restore(step, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract)))
+        except Exception as e:  # orbax raises many types for damaged files
+            raise CheckpointError(
+                f"checkpoint {self.dir / 'checkpoints' / str(step)} cannot be restored ({type(e).__name__}: "
+                f"{e}); delete that step folder to fall back to an earlier one") from e
+        return out["state"]
+
+    # -------------------------------------------------------------- training
+    def fit(self, params, loss_fn: Callable, sample_batch: Callable[[int], Any], progress: bool = True,
+            stop_at: int | None = None) -> TrainState:
+        """Train to ``spec.steps`` (resuming from the latest checkpoint); returns the final state.
+
+        ``stop_at`` ends early at that step (after checkpointing), to test resuming.
+        """
+        spec = self.spec
+        optimizer = make_optimizer(spec)
+        state = TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=optimizer.init(params))
+        if self.latest_step() is not None:
+            state = self.restore(state)
+        start = int(state.step)
+        self._truncate_metrics(start)
+        state = jax.device_put(state, sharding.replicated())
+        step_fn = make_train_step(loss_fn, optimizer, jax.random.key(spec.seed))
+        end = spec.steps if stop_at is None else min(stop_at, spec.steps)
+        bar = _bar(progress, self.name, spec.steps, start)
+        log = open(self.dir / "metrics.jsonl", "a")
+        t0, acc = time.time(), []
+        try:
+            for step in range(start, end):
+                batch = sharding.shard_batch(sample_batch(step))
+                state, metrics = step_fn(state, batch)
+                acc.append(metrics)
+                if (step + 1) % spec.log_every == 0 or step + 1 == end:
+                    m = {k: float(np.mean([float(a[k]) for a in acc])) for k in acc[0]}
+                    acc = []
+                    if not all(math.isfinite(v) for v in m.values()):
+                        raise FloatingPointError(f"{self.name}: non-finite metrics at step {step + 1}: {m}")
+                    log.write(json.dumps({"step": step + 1, "time_s": round(time.time() - t0, 2), **m}) + "\n")
+                    log.flush()
+                    bar.set_postfix(loss=f"{m['loss']:.4g}")
+                if (step + 1) % spec.ckpt_every == 0 or step + 1 == end:
+                    self.save(state)
+                bar.update(1)
+        finally:
+            bar.close()
+            log.close()
+        self.plot()
+        return state
+
+    def _truncate_metrics(self, step: int) -> None:
+        """Drop log lines past the checkpoint we resume from (they will be recomputed)."""
+        f = self.dir / "metrics.jsonl"
+        if not f.exists():
+            return
+        keep = [ln for ln in f.read_text().splitlines() if ln.strip() and json.loads(ln)["step"] <= step]
+        f.write_text("".join(ln + "\n" for ln in keep))
+
+    def metrics(self) -> list[dict]:
+        f = self.dir / "metrics.jsonl"
+        return [json.loads(ln) for ln in f.read_text().splitlines() if ln.strip()] if f.exists() else []
+
+    def plot(self) -> Path | None:
+        rows = self.metrics()
+        if not rows:
+            return None
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        keys = [k for k in rows[0] if k not in ("step", "time_s", "grad_norm")]
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        steps = [r["step"] for r in rows]
+        for k in keys:
+            ax.plot(steps, [r[k] for r in rows], label=k, lw=1.2 if k == "loss" else 0.8)
+        ax.set_yscale("log")
+        ax.set_xlabel("step")
+        ax.set_title(f"{self.name} training losses")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        out = self.dir / "loss.png"
+        fig.savefig(out, dpi=110)
+        plt.close(fig)
+        return out
+
+
+def _bar(enabled: bool, name: str, total: int, initial: int):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, desc=name, unit="step", disable=not enabled, dynamic_ncols=True)
+
+
+def batch_indices(n: int, batch: int, seed: int, step: int) -> np.ndarray:
+    """The batch drawn at ``step``: a pure function of (seed, step), so resuming is exact."""
+    return np.random.default_rng([seed, step]).integers(0, n, size=batch)
