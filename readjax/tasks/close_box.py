@@ -26,7 +26,7 @@ def _lid_point(angle, p_lid=PUSHER) -> np.ndarray:
 # Expert path in the box frame: behind and above the tab, down, slide under it, then the arc.
 _START = _lid_point(OPEN)
 _PATH = np.stack(
-    [_START + [0.06, 0, 0.12], _START + [0.06, 0, 0.0], _START]
+    [_START + [0.035, 0, 0.12], _START + [0.035, 0, 0.0], _START]
     + [_lid_point(a) for a in ARC]
     + [_lid_point(0.0) + [0, 0, 0.1]]
 ).astype(np.float32)
@@ -47,7 +47,7 @@ class CloseBox(TaskEnv):
 
     def sample_scene(self, key):
         k_xy, k_yaw = jax.random.split(key)
-        xy = jax.random.uniform(k_xy, (2,), minval=jnp.array([0.32, -0.2]), maxval=jnp.array([0.45, 0.2]))
+        xy = jax.random.uniform(k_xy, (2,), minval=jnp.array([0.37, -0.2]), maxval=jnp.array([0.48, 0.2]))
         yaw = jax.random.uniform(k_yaw, (), minval=-jnp.pi / 8, maxval=jnp.pi / 8)
         scene = self.default_scene()
         pos = jnp.array([xy[0], xy[1], 0.0])
