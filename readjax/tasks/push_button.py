@@ -13,7 +13,7 @@ from readjax.tasks.common import down_quat, free_adr, set_free_body
 PRESSED = 0.003  # m the button joint must travel
 CAP_TOP = 0.046  # cap top above the table at rest
 PAD_HALF = 0.009  # finger pad half height below the tcp
-PRESS_DEPTH = 0.008
+PRESS_DEPTH = 0.016  # past the 12 mm travel: the recorded (measured) press goes all the way
 
 
 class PushButton(TaskEnv):
@@ -22,7 +22,7 @@ class PushButton(TaskEnv):
     xml = "push_button.xml"
     description = "press the red button on its base"
     fixtures = ("button_base",)
-    expert_durations = (40, 25, 10, 20)  # above (gripper closing), press, hold, retreat
+    expert_durations = (40, 25, 15, 20)  # above (gripper closing), press, hold, retreat
 
     def setup(self):
         m = self.mj_model
