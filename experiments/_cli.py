@@ -8,8 +8,9 @@ import sys
 import readjax  # noqa: F401  (XLA flags before jax is imported)
 from readjax.data.store import DatasetError
 from readjax.tasks import UnknownTaskError
+from readjax.training import CheckpointError
 
-USER_ERRORS = (ValueError, FileNotFoundError, DatasetError, UnknownTaskError)
+USER_ERRORS = (ValueError, FileNotFoundError, DatasetError, UnknownTaskError, CheckpointError)
 
 
 def run(main, argv=None) -> int:

@@ -26,6 +26,7 @@ from readjax.sim.camera import CameraParams
 from readjax.sim.controller import rollout_joints
 from readjax.sim.kinematics import HOME_Q
 
+TRACE_KEYS = ("tcp_pos", "ctrl", "attached", "rel_pos", "rel_quat")
 AVG12 = tasks.AVG12
 AVG16 = tasks.AVG16
 
@@ -79,6 +80,10 @@ def executor(env, cam: CameraParams, cfg: ExecConfig = ExecConfig()):
             "aborted": aborted,
             "failure": state.failure,
             "tcp_pos": trace.tcp_pos,
+            "ctrl": trace.ctrl,
+            "attached": trace.attached,
+            "rel_pos": trace.rel_pos,
+            "rel_quat": trace.rel_quat,
         }
 
     return jax.jit(jax.vmap(execute))
@@ -99,7 +104,7 @@ def execute_motions(env, cam: CameraParams, scenes, motions, batch_size: int = 3
         res = jax.tree.map(np.asarray, fn(sc, jnp.asarray(motions[idx])))
         take = min(batch_size, n - start)
         for k, v in res.items():
-            if k == "tcp_pos" and not keep_traces:
+            if k in TRACE_KEYS and not keep_traces:
                 continue
             out.setdefault(k, []).append(v[:take])
     return {k: np.concatenate(v) for k, v in out.items()}
@@ -133,3 +138,103 @@ def format_table(rows: dict[str, dict[str, float]]) -> str:
     for m, r in rows.items():
         lines.append(f"{m:<{width}} " + " ".join(f"{r[c]:6.1f}" if c in r else f"{'-':>6}" for c in cols))
     return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    episodes: int = 100
+    N: int | None = None  # refinement steps; None = the planner's default
+    retrieval: str = "spe"  # or "cheat" (oracle)
+    rank: int = 1  # oracle neighbour rank
+    batch_size: int = 50
+    seed: int = 0
+    videos: int = 4  # rollouts rendered to the MP4 (0 = none)
+    image_noise: float = 0.0  # Table 9 perturbations of the test image
+    brightness: float = 1.0
+
+
+def perturb_images(rgbd: np.ndarray, cfg: EvalConfig, seed: int) -> np.ndarray:
+    """Table 9's perturbed test images: Gaussian noise on RGB and a brightness factor."""
+    if cfg.image_noise == 0 and cfg.brightness == 1.0:
+        return rgbd
+    rng = np.random.default_rng(seed)
+    out = rgbd.copy()
+    out[..., :3] = out[..., :3] * cfg.brightness + rng.normal(scale=cfg.image_noise, size=out[..., :3].shape)
+    out[..., :3] = np.clip(out[..., :3], 0, 1)
+    return out.astype(np.float32)
+
+
+def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval", progress: bool = True) -> dict:
+    """Plan for the test episodes, execute every plan in MJX, write ``out_dir/<name>.json``
+    (+ an overlay PNG and a rollout MP4) and return the result dict."""
+    import json
+    import time
+    from pathlib import Path
+
+    from tqdm.auto import tqdm
+
+    from readjax import provenance
+
+    if cfg.episodes > len(test_ds):
+        raise ValueError(f"the test split holds {len(test_ds)} episodes, fewer than --episodes {cfg.episodes}")
+    ds = test_ds.subset(np.arange(cfg.episodes)).resized(planner.image_size)
+    env = planner.env
+    scenes = scenes_for_seeds(env, ds.seeds)
+    images = perturb_images(ds.rgbd, cfg, cfg.seed)
+    n_steps = planner.n_steps if cfg.N is None else cfg.N
+    t0 = time.time()
+    plans = []
+    bs = min(cfg.batch_size, len(ds))
+    for s in tqdm(range(0, len(ds), bs), desc="planning", disable=not progress, unit="batch"):
+        idx = np.arange(s, s + bs) % len(ds)  # fixed batch shape: one compile
+        key = jax.random.fold_in(jax.random.key(cfg.seed), s)
+        p = planner.plan(images[idx], key, N=n_steps, retrieval_method=cfg.retrieval,
+                         gt_motion=ds.motion[idx], rank=cfg.rank)
+        take = min(bs, len(ds) - s)
+        plans.append(jax.tree.map(lambda x: x[:take], vars(p)))
+    plan = {k: np.concatenate([p[k] for p in plans]) for k in plans[0]}
+    t_plan = time.time() - t0
+    res = execute_motions(env, planner.camera, scenes, plan["motion"], batch_size=bs,
+                          keep_traces=cfg.videos > 0)
+    t_exec = time.time() - t0 - t_plan
+    rate = float(np.mean(res["success"]))
+    result = {
+        "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
+        "method": planner.spec.get("method", "read"), "name": name,
+        "success_rate": rate, "table": success_table({planner.task: rate}),
+        "episodes": len(ds), "seeds": ds.seeds.tolist(), "success": res["success"].astype(int).tolist(),
+        "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
+        "retrieval_error_m": float(np.mean(np.linalg.norm(plan["retrieved"][..., :3] - ds.motion[..., :3],
+                                                          axis=-1))),
+        "eval_config": {**vars(cfg), "N": n_steps}, "configs": planner.spec.get("configs"),
+        "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
+        "versions": provenance.versions(), "machine": provenance.machine(),
+    }
+    if out_dir is not None:
+        from readjax import viz
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"{name}.json").write_text(json.dumps(result, indent=2))
+        k = min(8, len(ds))
+        viz.motion_overlay(ds.rgbd[:k], [("retrieved", plan["retrieved"][:k], (255, 200, 0)),
+                                         ("planned", plan["motion"][:k], (0, 200, 255)),
+                                         ("ground truth", ds.motion[:k], (60, 230, 60))],
+                           out / f"{name}_overlay.png",
+                           titles=["ok" if s else "fail" for s in res["success"][:k]])
+        if cfg.videos > 0:
+            traces = _AttrTree({kk: res[kk] for kk in ("ctrl", "attached", "rel_pos", "rel_quat")})
+            frames = viz.rollout_video(env, scenes, traces, max_episodes=cfg.videos)
+            viz.save_video(out / f"{name}_rollouts.mp4", frames)
+    return result
+
+
+class _AttrTree(dict):
+    """A dict whose keys are also attributes, and which jax.tree maps like a dict."""
+
+    def __getattr__(self, k):
+        return self[k]
+
+
+jax.tree_util.register_pytree_node(
+    _AttrTree, lambda d: (list(d.values()), list(d.keys())), lambda keys, vals: _AttrTree(zip(keys, vals)))

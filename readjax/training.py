@@ -78,7 +78,9 @@ class Stage:
 
     def __init__(self, run_dir: str | Path, name: str, spec: StageSpec, config: dict, fingerprint: str):
         self.dir = Path(run_dir) / name
-        self.name, self.spec, self.config, self.fingerprint = name, spec, config, fingerprint
+        # compare configs as JSON sees them (tuples become lists on disk)
+        self.name, self.spec, self.fingerprint = name, spec, fingerprint
+        self.config = json.loads(json.dumps(config))
         self.dir.mkdir(parents=True, exist_ok=True)
         self._check_identity()
         options = ocp.CheckpointManagerOptions(max_to_keep=spec.keep, create=True,

@@ -66,3 +66,59 @@ def label_grid(images: list[np.ndarray], labels: list[str], cols: int = 4) -> Im
         canvas.paste(Image.fromarray(img), (x, y))
         draw.text((x + 4, y + h + 3), label, fill=(0, 0, 0))
     return canvas
+
+
+def motion_overlay(images: np.ndarray, layers: list[tuple[str, np.ndarray, tuple]], path: str | Path,
+                   titles: list[str] | None = None, scale: int = 4) -> None:
+    """Draw motions' uv paths over their input images (the paper's Figure 13).
+
+    ``images`` (B, H, W, 4) RGB-D in [0, 1]; ``layers``: (label, motions (B, 101, 10), RGB colour).
+    A filled dot marks the frames where the gripper is closed.
+    """
+    tiles = []
+    for b in range(len(images)):
+        rgb = (np.clip(images[b, ..., :3], 0, 1) * 255).astype(np.uint8)
+        img = Image.fromarray(rgb).resize((rgb.shape[1] * scale, rgb.shape[0] * scale), Image.NEAREST)
+        draw = ImageDraw.Draw(img)
+        w, h = img.size
+        for label, motions, colour in layers:
+            uv = np.asarray(motions[b][:, :2])
+            pts = [((u + 1) * w / 2, (v + 1) * h / 2) for u, v in uv]
+            draw.line(pts, fill=colour, width=2)
+            for (x, y), g in zip(pts[::4], np.asarray(motions[b][::4, 9])):
+                if g < 0.5:
+                    draw.ellipse([x - 2, y - 2, x + 2, y + 2], fill=colour)
+        if titles:
+            draw.text((4, 4), titles[b], fill=(255, 255, 255))
+        tiles.append(np.asarray(img))
+    legend_h = 16
+    grid = label_grid(tiles, [""] * len(tiles), cols=min(4, len(tiles)))
+    canvas = Image.new("RGB", (grid.width, grid.height + legend_h), (255, 255, 255))
+    canvas.paste(grid, (0, legend_h))
+    draw = ImageDraw.Draw(canvas)
+    x = 4
+    for label, _, colour in layers:
+        draw.rectangle([x, 4, x + 10, 12], fill=colour)
+        draw.text((x + 14, 2), label, fill=(0, 0, 0))
+        x += 14 + 7 * len(label) + 16
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    canvas.save(path)
+
+
+def rollout_video(env, scenes, traces, size: int = 160, every: int = 2, max_episodes: int = 4) -> list[np.ndarray]:
+    """Side-by-side frames of executed rollouts (replayed in C MuJoCo from their recorded controls)."""
+    from readjax.sim.reference import replay
+
+    n = min(max_episodes, len(np.asarray(scenes.qpos)))
+    per_episode = []
+    with SceneRenderer(env.mj_model, size, size) as r:
+        for i in range(n):
+            sc = jax.tree.map(lambda x: np.asarray(x)[i], scenes)
+            tr = jax.tree.map(lambda x: np.asarray(x)[i], traces)
+            frames = []
+            r.set_state(sc.qpos, sc.mocap_pos, sc.mocap_quat, env.recolour_ids, sc.rgba)
+            frames.append(r.render(depth=False)[0])
+            replay(env, sc, tr, on_step=lambda k, d: frames.append(r.render_data(d)) if k % every == 0 else None)
+            per_episode.append(frames)
+    length = max(len(f) for f in per_episode)
+    return [np.concatenate([f[min(t, len(f) - 1)] for f in per_episode], axis=1) for t in range(length)]

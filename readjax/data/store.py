@@ -68,6 +68,10 @@ class Dataset:
         h.update(str(self.rgbd.shape).encode())
         return h.hexdigest()[:16]
 
+    def fingerprint_matches(self, fingerprint: str, image_size: int) -> bool:
+        """Whether this dataset, resized to ``image_size``, is the one a run recorded."""
+        return self.resized(image_size).fingerprint == fingerprint if self.image_size % image_size == 0 else False
+
     def resized(self, size: int) -> "Dataset":
         """The same data with images area-downsampled to size x size (size must divide H)."""
         return Dataset(self.task, self.split, scale_camera(self.camera, size), resize_images(self.rgbd, size),

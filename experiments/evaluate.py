@@ -1,0 +1,90 @@
+"""Evaluate a trained run: plan for the fixed test episodes, execute every plan in MJX (batched)
+with the paper's protocol, and print the success table.
+
+Writes RUN/eval/<name>.json (per-episode success, rates, config, seeds, versions), an overlay of
+retrieved / planned / ground-truth motions on the input images (<name>_overlay.png) and a video of
+a few executed rollouts (<name>_rollouts.mp4). The test split (DATA/<task>/test) is generated
+first if it is missing.
+
+examples:
+  python -m experiments.evaluate --run runs/reach_target/read --episodes 100
+  python -m experiments.evaluate --run runs/RT/read --no-refine                 # N = 0
+  python -m experiments.evaluate --run runs/RT/read --retrieval cheat --rank 3 --N 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from experiments import _cli
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m experiments.evaluate", description=__doc__,
+                                formatter_class=_cli.HelpFormatter)
+    p.add_argument("--run", required=True, help="a run folder from experiments.train")
+    p.add_argument("--episodes", type=_cli.positive_int, default=100, help="test episodes (fixed seeds)")
+    p.add_argument("--N", type=int, default=None, help="refinement steps (default: 100)")
+    p.add_argument("--no-refine", action="store_true", help="execute the retrieved motion (N = 0)")
+    p.add_argument("--retrieval", default="spe", choices=("spe", "cheat"), help="SPE, or the oracle")
+    p.add_argument("--rank", type=_cli.positive_int, default=1, help="oracle: the rank-th nearest neighbour")
+    p.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std on test RGB (Table 9)")
+    p.add_argument("--brightness", type=float, default=1.0, help="brightness factor on test RGB (Table 9)")
+    p.add_argument("--data", default=None, help="dataset root (default: the one the run was trained on)")
+    p.add_argument("--batch-size", type=_cli.positive_int, default=50)
+    p.add_argument("--videos", type=int, default=4, help="rollouts rendered to the MP4 (0: none)")
+    p.add_argument("--name", default=None, help="result name (default from the options)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--quiet", action="store_true")
+    return p
+
+
+def default_name(args) -> str:
+    n = 0 if args.no_refine else args.N
+    parts = [args.retrieval if args.retrieval == "spe" else f"cheat{args.rank}", f"N{'default' if n is None else n}"]
+    if args.noise:
+        parts.append(f"noise{args.noise:g}")
+    if args.brightness != 1.0:
+        parts.append(f"bright{args.brightness:g}")
+    return "_".join(parts)
+
+
+def main(argv=None) -> None:
+    args = parser().parse_args(argv)
+    if args.N is not None and args.N < 0:
+        raise ValueError(f"--N must be >= 0, got {args.N}")
+    from readjax import evaluation
+    from readjax.data import store
+    from readjax.data.generate import GenerateConfig, generate
+    from readjax.methods.base import read_run
+    from readjax.planner import Planner
+
+    spec = read_run(args.run)
+    root = args.data or spec["data_root"]
+    test_dir = store.split_dir(root, spec["task"], "test")
+    have = store.read_progress(test_dir).kept if test_dir.exists() else 0
+    if have < args.episodes:
+        train_meta = store.read_meta(store.split_dir(root, spec["task"], "train")) or {}
+        size = train_meta.get("image_size", spec["image_size"])
+        print(f"generating the test split ({args.episodes} episodes) in {test_dir}", flush=True)
+        generate(GenerateConfig(task=spec["task"], split="test", episodes=args.episodes, out=str(root),
+                                image_size=size), progress=not args.quiet)
+    test_ds = store.load_dataset(test_dir, limit=args.episodes)
+    planner = Planner.load(args.run, data_root=root)
+    cfg = evaluation.EvalConfig(episodes=args.episodes, N=0 if args.no_refine else args.N,
+                                retrieval=args.retrieval, rank=args.rank, batch_size=args.batch_size,
+                                seed=args.seed, videos=args.videos, image_noise=args.noise,
+                                brightness=args.brightness)
+    name = args.name or default_name(args)
+    result = evaluation.evaluate(planner, test_ds, cfg, out_dir=Path(args.run) / "eval", name=name,
+                                 progress=not args.quiet)
+    label = f"{result['method']} ({name})"
+    print(evaluation.format_table({label: result["table"]}))
+    print(f"success {100 * result['success_rate']:.1f}% over {result['episodes']} episodes; "
+          f"results in {Path(args.run) / 'eval' / (name + '.json')}")
+
+
+if __name__ == "__main__":
+    sys.exit(_cli.run(main))

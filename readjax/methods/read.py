@@ -1,0 +1,154 @@
+"""READ: train the motion autoencoder, then the latent-noised task-space denoiser (METHOD.md
+sections 4-6), in two resumable stages of one run folder (``vae/``, ``read/``)."""
+
+from __future__ import annotations
+
+from functools import partial
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from readjax import retrieval, tasks
+from readjax.data import motion as motion_lib
+from readjax.diffusion import irsde
+from readjax.methods import base
+from readjax.methods.augment import augment_rgb
+from readjax.models.denoiser import Denoiser
+from readjax.models.kinematic_vae import make_autoencoder
+from readjax.training import Stage, StageSpec
+
+
+def build_modules(configs: dict, chain, camera):
+    ae = make_autoencoder(configs["vae"], chain=chain, camera=camera)
+    return ae, Denoiser(configs["denoiser"], output="delta")
+
+
+def init_ae(ae, key):
+    return ae.init(key, jnp.zeros((1, motion_lib.FRAMES, motion_lib.DIM)))
+
+
+def init_denoiser(den, image_size: int, key):
+    k1, k2 = jax.random.split(key)
+    return den.init({"params": k1, "dropout": k2}, jnp.zeros((1, image_size, image_size, 4)),
+                    jnp.zeros((1, motion_lib.FRAMES, motion_lib.DIM)), jnp.zeros((1,)))
+
+
+def vae_spec(train) -> StageSpec:
+    return StageSpec(steps=train.vae_steps, batch_size=train.vae_batch, lr=train.vae_lr, ckpt_every=train.ckpt_every,
+                     log_every=train.log_every, seed=train.seed)
+
+
+def denoiser_spec(train) -> StageSpec:
+    return StageSpec(steps=train.steps, batch_size=train.batch, lr=train.lr, lr_decay=train.lr_decay,
+                     lr_decay_every=train.lr_decay_every, ckpt_every=train.ckpt_every, log_every=train.log_every,
+                     seed=train.seed + 1)
+
+
+def ae_loss(ae):
+    def loss_fn(params, batch, rng):
+        return ae.apply(params, batch, rng, method="loss")
+
+    return loss_fn
+
+
+def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool):
+    """M̂0 = D(I, Dec(z_t), t) with z_t from the latent IR-SDE marginal; sum of per-key MSEs."""
+
+    def loss_fn(params, batch, rng):
+        k_t, k_n, k_aug, k_drop = jax.random.split(rng, 4)
+        image, m, m_r = batch["image"], batch["motion"], batch["retrieved"]
+        if augment:
+            image = augment_rgb(k_aug, image)
+        z0 = ae.apply(ae_params, m, method="code")
+        z_r = ae.apply(ae_params, m_r, method="code")
+        t = irsde.sample_time(k_t, (m.shape[0],), sde)
+        m_t = ae.apply(ae_params, irsde.marginal_sample(k_n, z0, z_r, t, sde), method="decode")
+        pred = den.apply(params, image, m_t, t, train=True, rngs={"dropout": k_drop})
+        per_key = {k: jnp.mean((pred[..., s] - m[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
+        return sum(per_key.values()), per_key
+
+    return loss_fn
+
+
+def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
+          stages=("vae", "read"), progress: bool = True, stop_at: int | None = None) -> dict:
+    """Train READ for a task; each stage resumes from its latest checkpoint. Returns run.json."""
+    task = tasks.canonical_name(task)
+    run_dir = Path(run_dir)
+    train_cfg = configs["train"]
+    image_size = configs["denoiser"].image_size
+    ds = base.load_train_data(data_root, task, train_cfg, image_size)
+    env = tasks.make(task)
+    ae, den = build_modules(configs, env.chain, ds.camera)
+    cfg_dict = base.configs_to_dict(configs)
+    spec = {"method": "read", "task": task, "preset": preset, "configs": cfg_dict,
+            "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
+            "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
+    base.write_run(run_dir, spec)
+    key = jax.random.key(train_cfg.seed)
+    k_ae, k_den = jax.random.split(key)
+    seed = train_cfg.seed
+    vspec = vae_spec(train_cfg)
+    ae_cfg = {"vae": cfg_dict["vae"], "train": cfg_dict["train"]}
+    if "vae" in stages:
+        def vae_batch(step):
+            idx = base.sample_indices(len(ds), vspec.batch_size, seed, step)
+            return {"motion": ds.motion[idx], "joints": ds.joints[idx]}
+
+        Stage(run_dir, "vae", vspec, ae_cfg, ds.fingerprint).fit(
+            init_ae(ae, k_ae), ae_loss(ae), vae_batch, progress=progress, stop_at=stop_at)
+    if "read" in stages:
+        ae_params = base.stage_params(run_dir, "vae", vspec, init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
+        dspec = denoiser_spec(train_cfg)
+        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
+
+        def read_batch(step):
+            idx = base.sample_indices(len(ds), dspec.batch_size, dspec.seed, step)
+            j = base.neighbour_choice(pairs, idx, dspec.seed, step)
+            return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j]}
+
+        loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment)
+        Stage(run_dir, "read", dspec, cfg_dict, ds.fingerprint).fit(
+            init_denoiser(den, image_size, k_den), loss, read_batch, progress=progress, stop_at=stop_at)
+    return base.read_run(run_dir)
+
+
+def load(run_dir: str | Path):
+    """(run spec, configs, ae, ae_params, denoiser, denoiser_params) of a trained READ run."""
+    run_dir = Path(run_dir)
+    spec = base.read_run(run_dir)
+    configs = base.configs_from_dict(spec["configs"])
+    from readjax.sim.camera import CameraParams
+
+    cam = CameraParams.from_dict(spec["camera"])
+    env = tasks.make(spec["task"])
+    ae, den = build_modules(configs, env.chain, cam)
+    key = jax.random.key(configs["train"].seed)
+    k_ae, k_den = jax.random.split(key)
+    cfg_dict = base.configs_to_dict(configs)
+    ae_params = base.stage_params(run_dir, "vae", vae_spec(configs["train"]), init_ae(ae, k_ae),
+                                  {"vae": cfg_dict["vae"], "train": cfg_dict["train"]}, spec["dataset_fingerprint"])
+    den_params = base.stage_params(run_dir, "read", denoiser_spec(configs["train"]),
+                                   init_denoiser(den, configs["denoiser"].image_size, k_den), cfg_dict,
+                                   spec["dataset_fingerprint"])
+    return spec, configs, cam, ae, ae_params, den, den_params
+
+
+@partial(jax.jit, static_argnums=(0,))
+def database_tokens(den: Denoiser, den_params, images: jax.Array, motions: jax.Array) -> jax.Array:
+    """Each database image's features sampled along its own motion (N, 101, C), for SPE retrieval."""
+    feats = den.apply(den_params, images, method="encode_image")
+    return den.apply(den_params, feats, motion_lib.uv(motions), method="image_tokens")
+
+
+def database_features(den, den_params, images: np.ndarray, motions: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """database_tokens in fixed-size chunks (the last one padded: one compile)."""
+    n, out = len(images), []
+    chunk = min(chunk, n)
+    for s in range(0, n, chunk):
+        idx = np.arange(s, s + chunk) % n
+        tok = database_tokens(den, den_params, jnp.asarray(images[idx]), jnp.asarray(motions[idx]))
+        out.append(np.asarray(tok)[: min(chunk, n - s)])
+    return np.concatenate(out)

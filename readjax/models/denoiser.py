@@ -1,0 +1,176 @@
+"""The READ denoiser (METHOD.md section 6): image features sampled along the motion + transformer.
+
+Given the image's feature map F (from :class:`~readjax.models.convnext_unet.ConvNeXtUNet`), the
+current motion M_t (B, 101, 10) and the diffusion time t in [0, 1], it predicts the clean motion:
+
+* 101 motion tokens: MLP 10 -> d -> 2d -> d of each frame;
+* 1 time token: sinusoidal features of the raw t (frequencies exp(-k log(5000)/(d/2 - 1))), then
+  an MLP d -> d -> 2d -> d;
+* 101 image tokens: F bilinearly sampled at each frame's uv (:func:`sample_features`), projected
+  to d when C != d;
+* sinusoidal positions on [motion, time] (0..101) and, separately, on the image tokens (0..100);
+* optional extra conditioning tokens (the retrieved motion, for the VPSDE+CG baseline): embedded
+  by their own MLP, their own positions 0..100, and a per-sample keep flag that masks them out of
+  attention (classifier-free dropout; masked keys = the unconditional branch);
+* ``layers`` post-LN transformer encoder layers over all tokens; per-key heads d -> d/2 -> d/2 ->
+  dim on the motion tokens' outputs.
+
+``output="delta"``: returns M_t + heads (READ's M̂0). ``output="eps"``: returns the heads' output
+as is (noise-predicting baselines). The image is encoded ONCE by :meth:`Denoiser.encode_image`
+(the UNet trunk, from which the full-resolution map's samples are computed exactly, see
+:mod:`readjax.models.convnext_unet`); :meth:`Denoiser.denoise` reuses it at every step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import flax.linen as nn
+
+from readjax.config import DenoiserConfig
+from readjax.data import motion as mo
+from readjax.models.convnext_unet import ConvNeXtUNet, bilinear_axis
+from readjax.models.vae import (KEY_DIMS, MLP, EncoderLayer, check_motion_shape, embed_mlp,
+                                sinusoidal_positions)
+
+OUTPUTS = ("delta", "eps")
+TIME_MAX_PERIOD = 5000.0
+
+
+def sample_features(features: jax.Array, uv: jax.Array) -> jax.Array:
+    """Bilinear samples of a feature map (B, H, W, C) at normalised points uv (B, T, 2) -> (B, T, C).
+
+    uv in [-1, 1] follows :mod:`readjax.sim.camera`: u = 2 u_px / W - 1 with pixel i covering
+    [i, i + 1), so pixel centres sit at u_px = i + 0.5 and the map (one vector per pixel) is sampled
+    at x = (u + 1) W / 2 - 0.5. Points beyond the outermost pixel centres are clamped to the
+    border. Differentiable in both the features and uv.
+    """
+    if features.ndim != 4:
+        raise ValueError(f"features must have shape (B, H, W, C), got {features.shape}")
+    if uv.ndim != 3 or uv.shape[-1] != 2 or uv.shape[0] != features.shape[0]:
+        raise ValueError(f"uv must have shape (B={features.shape[0]}, T, 2), got {uv.shape}")
+    b, h, w, c = features.shape
+    y0, y1, wy = bilinear_axis(uv[..., 1], h)
+    x0, x1, wx = bilinear_axis(uv[..., 0], w)
+    flat = features.reshape(b, h * w, c)
+
+    def at(yi, xi):
+        return jnp.take_along_axis(flat, (yi * w + xi)[..., None], axis=1)
+
+    wx, wy = wx[..., None], wy[..., None]
+    return ((1 - wx) * (1 - wy) * at(y0, x0) + wx * (1 - wy) * at(y0, x1)
+            + (1 - wx) * wy * at(y1, x0) + wx * wy * at(y1, x1))
+
+
+def time_features(t: jax.Array, dim: int) -> jax.Array:
+    """Sinusoidal features (B, dim) of raw diffusion times t (B,) in [0, 1] (the released code's)."""
+    half = dim // 2
+    if half < 2:
+        raise ValueError(f"time features need dim >= 4, got {dim}")
+    freqs = jnp.exp(jnp.arange(half, dtype=jnp.float32) * (-math.log(TIME_MAX_PERIOD) / (half - 1)))
+    arg = t[:, None] * freqs[None, :]
+    return jnp.concatenate([jnp.sin(arg), jnp.cos(arg)], axis=-1)
+
+
+class Denoiser(nn.Module):
+    """READ's image-conditioned motion denoiser (see the module docstring).
+
+    Methods (through ``apply(..., method=...)``):
+
+    * ``encode_image(image, train=False) -> features``: the per-image cache, the UNet trunk's
+      output (B, H/4, W/4, conv_dims[0]) (see :mod:`readjax.models.convnext_unet`);
+    * ``image_tokens(features, uv) -> (B, T, C)``: the full-resolution C-channel feature map
+      bilinearly sampled at uv (B, T, 2) — what the transformer sees, and what SPE retrieval
+      (METHOD.md section 7) compares; T is arbitrary;
+    * ``feature_map(image, train=False) -> (B, H, W, C)``: the full map itself (inspection, tests);
+    * ``denoise(features, motion_t, t, cond=None, cond_keep=None) -> (B, 101, 10)``;
+    * ``__call__(image, motion_t, t, cond=None, cond_keep=None, train=False)`` = encode + denoise
+      (for init and training). Training with drop-path needs ``train=True`` and
+      ``rngs={"dropout": key}``.
+
+    ``t`` is a scalar or (B,). ``cond`` (B, 101, 10) is only accepted when ``use_cond``; with
+    ``use_cond`` and ``cond=None`` the conditioning tokens are all masked (unconditional).
+    ``cond_keep`` (B,) bool masks them per sample.
+    """
+
+    cfg: DenoiserConfig
+    use_cond: bool = False
+    output: str = "delta"
+
+    def setup(self):
+        c = self.cfg
+        if self.output not in OUTPUTS:
+            raise ValueError(f"output must be one of {OUTPUTS}, got {self.output!r}")
+        d = c.d_model
+        self.unet = ConvNeXtUNet(c)
+        self.motion_embed = embed_mlp(d)
+        self.time_embed = embed_mlp(d)
+        self.image_proj = nn.Dense(d) if c.feature_channels != d else None
+        self.cond_embed = embed_mlp(d) if self.use_cond else None
+        self.layers = [EncoderLayer(d, c.heads, c.ffn) for _ in range(c.layers)]
+        self.heads = {k: MLP((d // 2, d // 2, dim)) for k, dim in KEY_DIMS.items()}
+
+    def __call__(self, image, motion_t, t, cond=None, cond_keep=None, train: bool = False):
+        return self.denoise(self.encode_image(image, train), motion_t, t, cond, cond_keep)
+
+    def encode_image(self, image, train: bool = False):
+        """The per-image feature cache (computed once per image, reused at every step)."""
+        return self.unet.trunk(image, train)
+
+    def image_tokens(self, features, uv):
+        """Samples (B, T, C) of the full-resolution feature map at uv (B, T, 2)."""
+        return self.unet.head_at(features, uv)
+
+    def feature_map(self, image, train: bool = False):
+        """The full-resolution C-channel feature map (B, H, W, C)."""
+        return self.unet(image, train)
+
+    def denoise(self, features, motion_t, t, cond=None, cond_keep=None):
+        c = self.cfg
+        d = c.d_model
+        check_motion_shape(motion_t, "motion_t")
+        b = motion_t.shape[0]
+        if features.ndim != 4 or features.shape[0] != b or features.shape[-1] != c.conv_dims[0]:
+            raise ValueError(f"features (from encode_image) must have shape (B={b}, H/4, W/4, "
+                             f"{c.conv_dims[0]}), got {features.shape}")
+        t = jnp.asarray(t, jnp.float32)
+        if t.ndim > 1 or (t.ndim == 1 and t.shape[0] != b):
+            raise ValueError(f"t must be a scalar or have shape ({b},), got {t.shape}")
+        t = jnp.broadcast_to(t, (b,))
+
+        motion_tok = self.motion_embed(motion_t)
+        time_tok = self.time_embed(time_features(t, d))[:, None, :]
+        seq = jnp.concatenate([motion_tok, time_tok], axis=1) + sinusoidal_positions(mo.FRAMES + 1, d)
+        img = self.image_tokens(features, mo.uv(motion_t))
+        if self.image_proj is not None:
+            img = self.image_proj(img)
+        tokens = [seq, img + sinusoidal_positions(mo.FRAMES, d)]
+
+        mask = None
+        if self.use_cond:
+            if cond is None:
+                cond = jnp.zeros_like(motion_t)
+                cond_keep = jnp.zeros((b,), bool)
+            check_motion_shape(cond, "cond")
+            if cond.shape[0] != b:
+                raise ValueError(f"cond must have batch size {b}, got {cond.shape[0]}")
+            tokens.append(self.cond_embed(cond) + sinusoidal_positions(mo.FRAMES, d))
+            if cond_keep is not None:
+                cond_keep = jnp.asarray(cond_keep, bool)
+                if cond_keep.shape != (b,):
+                    raise ValueError(f"cond_keep must have shape ({b},), got {cond_keep.shape}")
+                n_other = 2 * mo.FRAMES + 1
+                keys = jnp.concatenate([jnp.ones((b, n_other), bool),
+                                        jnp.broadcast_to(cond_keep[:, None], (b, mo.FRAMES))], axis=1)
+                mask = keys[:, None, None, :]  # (B, heads: broadcast, queries: broadcast, keys)
+        elif cond is not None or cond_keep is not None:
+            raise ValueError("this Denoiser was built with use_cond=False; it takes no cond tokens")
+
+        x = jnp.concatenate(tokens, axis=1)
+        for layer in self.layers:
+            x = layer(x, mask)
+        h = x[:, : mo.FRAMES]
+        out = mo.join_keys({k: self.heads[k](h) for k in mo.KEYS})
+        return motion_t + out if self.output == "delta" else out

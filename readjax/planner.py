@@ -1,0 +1,125 @@
+"""The public planner: ``Planner.load(run_dir)`` then ``plan(rgbd, key, N=...)``.
+
+Loading restores the trained models, loads the task's training set as the retrieval database and
+precomputes its SPE features once. ``plan`` validates the input, encodes each image once,
+retrieves a motion (SPE, or the oracle for experiments), refines it with N denoising steps (one
+jitted ``lax.scan``, compiled once per batch shape and N), converts the result to world poses with
+the dataset's camera, and solves a joint trajectory by IK.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from readjax import retrieval, tasks
+from readjax.data import motion as motion_lib
+from readjax.data import store
+from readjax.diffusion.refine import refine
+from readjax.evaluation import ExecConfig, solve_waypoints
+from readjax.methods import base
+
+
+@dataclass
+class Plan:
+    """A batch of plans (numpy). World poses are in the simulator's frame."""
+
+    motion: np.ndarray  # (B, 101, 10) camera-frame motion (the model's output)
+    retrieved: np.ndarray  # (B, 101, 10) the retrieved motion it was refined from
+    retrieved_index: np.ndarray  # (B,) index into the training set
+    positions: np.ndarray  # (B, 101, 3) end-effector positions, world
+    rotations: np.ndarray  # (B, 101, 3, 3) end-effector rotations, world
+    grip: np.ndarray  # (B, 101) gripper opening in [0, 1]
+    joints: np.ndarray  # (B, 101, 7) IK solution (unreachable frames hold the previous one)
+    reachable: np.ndarray  # (B, 101) whether IK reached each frame's pose
+
+
+class Planner:
+    """READ's planner for one trained run (see the module docstring)."""
+
+    def __init__(self, run_dir, spec, configs, camera, ae, ae_params, den, den_params, database: store.Dataset,
+                 n_steps: int | None = None):
+        self.run_dir = Path(run_dir)
+        self.spec, self.configs, self.camera = spec, configs, camera
+        self.ae, self.ae_params, self.den, self.den_params = ae, ae_params, den, den_params
+        self.task = spec["task"]
+        self.image_size = int(spec["image_size"])
+        self.database = database
+        self.n_steps = 100 if n_steps is None else int(n_steps)
+        self.env = tasks.make(self.task)
+        from readjax.methods.read import database_features
+
+        self.db_tokens = database_features(den, den_params, database.rgbd, database.motion)
+        self.db_uv = np.asarray(motion_lib.uv(database.motion))
+        self._encode = jax.jit(lambda p, x: den.apply(p, x, method="encode_image"))
+        self._ik = jax.jit(jax.vmap(functools.partial(solve_waypoints, self.env, cfg=ExecConfig())))
+
+    @classmethod
+    def load(cls, run_dir: str | Path, data_root: str | Path | None = None, n_steps: int | None = None) -> "Planner":
+        from readjax.methods import read
+
+        spec, configs, cam, ae, ae_params, den, den_params = read.load(run_dir)
+        root = data_root or spec["data_root"]
+        ds = store.load_dataset(store.split_dir(root, spec["task"], "train"),
+                                limit=spec.get("episodes") or None)
+        if ds.fingerprint_matches(spec["dataset_fingerprint"], spec["image_size"]) is False:
+            raise store.DatasetError(f"the training set at {root} is not the one {run_dir} was trained on")
+        return cls(run_dir, spec, configs, cam, ae, ae_params, den, den_params, ds.resized(spec["image_size"]),
+                   n_steps)
+
+    # ---------------------------------------------------------------- input checks
+    def check_rgbd(self, rgbd) -> np.ndarray:
+        """Clear errors for a wrong shape, dtype, range or NaN (nothing reaches JAX unchecked)."""
+        x = np.asarray(rgbd)
+        s = self.image_size
+        if x.ndim == 3:
+            raise ValueError(f"rgbd must be batched: shape (B, {s}, {s}, 4), got {x.shape} (use rgbd[None])")
+        if x.ndim != 4 or x.shape[1:] != (s, s, 4):
+            raise ValueError(f"rgbd must have shape (B, {s}, {s}, 4) (RGB + normalised depth), got {x.shape}")
+        if not np.issubdtype(x.dtype, np.floating):
+            raise ValueError(f"rgbd must be float in [0, 1], got dtype {x.dtype} (divide uint8 RGB by 255)")
+        if not np.all(np.isfinite(x)):
+            raise ValueError("rgbd contains NaN or infinite values")
+        if x.min() < -1e-3 or x.max() > 1 + 1e-3:
+            raise ValueError(f"rgbd values must lie in [0, 1], got [{x.min():.3g}, {x.max():.3g}]")
+        return x.astype(np.float32)
+
+    # ---------------------------------------------------------------- planning
+    def encode(self, rgbd) -> jax.Array:
+        return self._encode(self.den_params, jnp.asarray(self.check_rgbd(rgbd)))
+
+    def retrieve(self, features, method: str = "spe", gt_motion=None, rank: int = 1) -> np.ndarray:
+        """Database indices: SPE (section 7) or the oracle's ``rank``-th neighbour of ``gt_motion``."""
+        if method == "spe":
+            d = retrieval.spe_distances(self.den, self.den_params, features, self.db_uv, self.db_tokens)
+            return np.argmin(d, axis=1)
+        if method == "cheat":
+            if gt_motion is None:
+                raise ValueError("oracle ('cheat') retrieval needs the ground-truth motions (gt_motion=)")
+            motion_lib.check_motion(gt_motion, "gt_motion")
+            return retrieval.oracle_retrieve(self.camera, gt_motion, self.database.motion, rank)
+        raise ValueError(f"unknown retrieval {method!r}; use 'spe' or 'cheat'")
+
+    def plan(self, rgbd, key: jax.Array, N: int | None = None, retrieval_method: str = "spe",
+             gt_motion=None, rank: int = 1) -> Plan:
+        """Plans for a batch of first frames (B, S, S, 4). N = 0 executes the retrieved motion."""
+        n = self.n_steps if N is None else N
+        if not isinstance(n, (int, np.integer)) or n < 0:
+            raise ValueError(f"N must be a non-negative integer, got {n!r}")
+        feats = self.encode(rgbd)
+        idx = self.retrieve(feats, retrieval_method, gt_motion, rank)
+        m_r = jnp.asarray(self.database.motion[idx])
+        m = refine(self.ae, self.ae_params, self.den, self.den_params, feats, m_r, key, int(n),
+                   self.configs["sde"])
+        return self._finish(np.asarray(m), np.asarray(m_r), idx)
+
+    def _finish(self, m, m_r, idx) -> Plan:
+        pos, rot, grip = (np.asarray(x) for x in motion_lib.decode(self.camera, jnp.asarray(m)))
+        q, skipped = self._ik(jnp.asarray(pos), jnp.asarray(rot))
+        return Plan(motion=m, retrieved=m_r, retrieved_index=np.asarray(idx), positions=pos, rotations=rot,
+                    grip=grip, joints=np.asarray(q), reachable=~np.asarray(skipped))

@@ -1,0 +1,93 @@
+"""Retrieval of a motion from the training database (METHOD.md sections 6 and 7).
+
+* Training pairs: for each demo, its top-K neighbours among the OTHER demos by ground-truth
+  motion (flattened [position; 0.1 * rot6d], L2) — READ draws M_R uniformly from these.
+* SPE retrieval (test time): the test image's feature map is sampled along each candidate's uv and
+  compared with the candidate's own image features sampled along its own motion (precomputed once
+  per checkpoint); the smallest mean squared difference wins.
+* Oracle ("cheat") retrieval: the i-th nearest neighbour of the ground-truth test motion (mean
+  position error + 0.01 * mean rot6d error), used for the paper's oracle tables.
+Positions are 3D (world frame, recovered from uv and z with the dataset's camera).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from readjax.data import motion as motion_lib
+from readjax.sim.camera import CameraParams
+
+
+def positions(cam: CameraParams, motions: jax.Array) -> jax.Array:
+    """3D end-effector positions (..., 101, 3) of motions."""
+    pos, _, _ = motion_lib.decode(cam, jnp.asarray(motions))
+    return pos
+
+
+def _pair_features(cam: CameraParams, motions) -> np.ndarray:
+    m = jnp.asarray(motions)
+    feat = jnp.concatenate([positions(cam, m), 0.1 * motion_lib.rot6d(m)], axis=-1)
+    return np.asarray(feat.reshape(m.shape[0], -1), np.float64)
+
+
+def training_pairs(cam: CameraParams, motions, k: int) -> np.ndarray:
+    """(N, k) indices of each demo's k nearest OTHER demos (self excluded), nearest first."""
+    n = len(motions)
+    if not 1 <= k < n:
+        raise ValueError(f"K must be in [1, N-1] = [1, {n - 1}], got {k}")
+    f = _pair_features(cam, motions)
+    sq = (f**2).sum(1)
+    d = sq[:, None] + sq[None, :] - 2 * f @ f.T
+    np.fill_diagonal(d, np.inf)
+    return np.argsort(d, axis=1, kind="stable")[:, :k].astype(np.int32)
+
+
+def oracle_ranking(cam: CameraParams, query_motions, db_motions) -> np.ndarray:
+    """(B, N) database indices sorted by the cheat distance to each query's ground truth."""
+    q, db = jnp.asarray(query_motions), jnp.asarray(db_motions)
+    pq, pdb = positions(cam, q), positions(cam, db)
+    pos_err = jnp.linalg.norm(pq[:, None] - pdb[None], axis=-1).mean(-1)
+    rot_err = jnp.linalg.norm(motion_lib.rot6d(q)[:, None] - motion_lib.rot6d(db)[None], axis=-1).mean(-1)
+    return np.argsort(np.asarray(pos_err + 0.01 * rot_err), axis=1, kind="stable")
+
+
+def oracle_retrieve(cam: CameraParams, query_motions, db_motions, rank: int = 1) -> np.ndarray:
+    """Indices of the ``rank``-th nearest database motion (1 = nearest; clipped to the farthest)."""
+    if rank < 1:
+        raise ValueError(f"oracle rank must be >= 1, got {rank}")
+    order = oracle_ranking(cam, query_motions, db_motions)
+    return order[:, min(rank, order.shape[1]) - 1]
+
+
+@partial(jax.jit, static_argnums=(0,))
+def _spe_block(den, den_params, feats, uv, f_db):
+    def one(fmap):
+        fm = jnp.broadcast_to(fmap, (uv.shape[0],) + fmap.shape)
+        g = den.apply(den_params, fm, uv, method="image_tokens")
+        return jnp.mean((g - f_db) ** 2, axis=(1, 2))
+
+    return jax.lax.map(one, feats)
+
+
+def spe_distances(den, den_params, test_features: jax.Array, db_uv, db_tokens, chunk: int = 256) -> np.ndarray:
+    """(B, N) SPE distances mean((g_i - f_i)^2): g_i = the test image's features sampled along
+    candidate i's uv, f_i = candidate i's own image features along its own motion (precomputed,
+    ``db_tokens`` (N, 101, C)). ``den`` is the denoiser whose ``image_tokens`` samples features;
+    ``test_features`` (B, ...) come from its ``encode_image``."""
+    n = len(db_uv)
+    out = []
+    for s in range(0, n, chunk):
+        e = min(s + chunk, n)
+        uv = np.asarray(db_uv[s:e])
+        tok = np.asarray(db_tokens[s:e])
+        if e - s < chunk and n > chunk:  # pad the last chunk so one compile serves all
+            pad = chunk - (e - s)
+            uv = np.concatenate([uv, uv[:pad]])
+            tok = np.concatenate([tok, tok[:pad]])
+        d = np.asarray(_spe_block(den, den_params, test_features, jnp.asarray(uv), jnp.asarray(tok)))
+        out.append(d[:, : e - s])
+    return np.concatenate(out, axis=1)

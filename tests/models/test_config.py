@@ -1,0 +1,61 @@
+"""Model configs: presets, key=value overrides, JSON round trip, validation."""
+
+import json
+
+import pytest
+
+from readjax import config
+from readjax.config import DenoiserConfig, SDEConfig, VAEConfig
+
+
+def test_presets():
+    assert set(config.preset_names()) >= {"paper", "cpu"}
+    paper = config.preset("paper")
+    assert paper["vae"] == VAEConfig(width=32, layers=4, heads=4, latent_dim=32, kl_weight=0.01)
+    d = paper["denoiser"]
+    assert (d.conv_dims, d.enc_depths, d.dec_depths) == ((96, 192, 384, 768), (3, 3, 9, 3), (3, 3, 3))
+    sizes = (d.feature_channels, d.d_model, d.layers, d.heads, d.ffn, d.image_size)
+    assert sizes == (128, 128, 8, 4, 1024, 256)
+    assert d.drop_path == 0.1
+    assert paper["sde"] == SDEConfig(lam=0.5, theta1=2.0, theta0=None, t_min=1e-5)
+    assert config.preset("cpu")["denoiser"].image_size == 64
+    with pytest.raises(ValueError, match="unknown preset"):
+        config.preset("tpu")
+    # presets are hashable (modules built from them can be jit static arguments)
+    hash(tuple(paper.values()))
+
+
+def test_override():
+    cfgs = config.override(config.preset("cpu"), [
+        "vae.width=64", "denoiser.conv_dims=8,16,32,64", "kinematic=true", "L=0.3", "T=4", "sde.theta0=none",
+        "latent_dim=16", "drop_path=0", "sde.theta0=0.2",
+    ])
+    assert cfgs["vae"].width == 64 and cfgs["vae"].kinematic is True and cfgs["vae"].latent_dim == 16
+    assert cfgs["denoiser"].conv_dims == (8, 16, 32, 64) and cfgs["denoiser"].drop_path == 0.0
+    assert cfgs["sde"].lam == 0.3 and cfgs["sde"].theta1 == 4.0 and cfgs["sde"].theta0 == 0.2
+    assert config.override(config.preset("cpu"), ["sde.theta0=None"])["sde"].theta0 is None
+    assert config.preset("cpu")["vae"].width == 32  # presets are not mutated
+    for bad, match in [("layers=3", "ambiguous"), ("vae.depth=3", "no field"), ("foo.bar=1", "section"),
+                       ("width", "key=value"), ("vae.width=wide", "int"), ("vae.kinematic=maybe", "boolean"),
+                       ("vae.heads=5", "divisible")]:
+        with pytest.raises(ValueError, match=match):
+            config.override(config.preset("cpu"), [bad])
+
+
+def test_json_round_trip():
+    cfgs = config.preset("paper")
+    back = config.from_dict(json.loads(json.dumps(config.to_dict(cfgs))))
+    assert back == cfgs
+    with pytest.raises(ValueError):
+        config.from_dict({"vae": {"nope": 1}})
+
+
+def test_validation():
+    with pytest.raises(ValueError, match="multiple of 32"):
+        DenoiserConfig(image_size=48)
+    with pytest.raises(ValueError, match="4 conv_dims"):
+        DenoiserConfig(conv_dims=(8, 16, 32))
+    with pytest.raises(ValueError):
+        VAEConfig(width=0)
+    with pytest.raises(ValueError):
+        SDEConfig(theta0=-1.0)
