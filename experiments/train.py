@@ -25,20 +25,20 @@ from pathlib import Path
 
 from experiments import _cli
 
-MODELS = ("read",)
-
-
 def parser() -> argparse.ArgumentParser:
+    from readjax import methods
+
     p = argparse.ArgumentParser(prog="python -m experiments.train", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--task", required=True, help="task name or paper code")
-    p.add_argument("--model", default="read", choices=MODELS, help="method to train")
+    p.add_argument("--model", default="read", choices=methods.names(), help="method to train")
     p.add_argument("--preset", default="cpu", choices=("cpu", "paper"),
                    help="cpu: minutes on 2 cores; paper: the paper's sizes (GPU)")
     p.add_argument("--data", default="data", help="dataset root (DATA/<task>/train from experiments.generate)")
     p.add_argument("--out", default="runs", help="runs root; the run goes to OUT/<task>/<name>")
     p.add_argument("--name", default=None, help="run name (default: the model name)")
-    p.add_argument("--stage", default="all", choices=("all", "vae", "read"), help="which stage(s) to train")
+    p.add_argument("--stage", default="all", help="which stage to train (all, or one of the method's stages, "
+                   "e.g. vae / read for READ)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config field")
     p.add_argument("--restart", action="store_true", help="delete an existing run of this name first")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -47,17 +47,21 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax import tasks
-    from readjax.methods import base, read
+    from readjax import methods, tasks
+    from readjax.methods import base
 
     task = tasks.canonical_name(args.task)
     configs = base.override(base.presets(args.preset), args.set)
     run_dir = Path(args.out) / task / (args.name or args.model)
     if args.restart and run_dir.exists():
         shutil.rmtree(run_dir)
-    stages = ("vae", "read") if args.stage == "all" else (args.stage,)
+    all_stages = methods.stages(args.model)
+    if args.stage != "all" and args.stage not in all_stages:
+        raise ValueError(f"{args.model} has stages {', '.join(all_stages)}; got --stage {args.stage}")
+    stages = all_stages if args.stage == "all" else (args.stage,)
     print(f"training {args.model} on {task} ({args.preset} preset) -> {run_dir}", flush=True)
-    spec = read.train(task, args.data, run_dir, configs, args.preset, stages=stages, progress=not args.quiet)
+    spec = methods.module(args.model).train(task, args.data, run_dir, configs, args.preset, stages=stages,
+                                            progress=not args.quiet)
     summary = {"run": str(run_dir), "task": task, "episodes": spec["episodes"]}
     for stage in stages:
         f = run_dir / stage / "metrics.jsonl"

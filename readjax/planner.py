@@ -20,9 +20,7 @@ import numpy as np
 from readjax import retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.data import store
-from readjax.diffusion.refine import refine
 from readjax.evaluation import ExecConfig, solve_waypoints
-from readjax.methods import base
 
 
 @dataclass
@@ -40,37 +38,36 @@ class Plan:
 
 
 class Planner:
-    """READ's planner for one trained run (see the module docstring)."""
+    """The planner of one trained run, whatever its method (see the module docstring).
 
-    def __init__(self, run_dir, spec, configs, camera, ae, ae_params, den, den_params, database: store.Dataset,
-                 n_steps: int | None = None):
-        self.run_dir = Path(run_dir)
-        self.spec, self.configs, self.camera = spec, configs, camera
-        self.ae, self.ae_params, self.den, self.den_params = ae, ae_params, den, den_params
-        self.task = spec["task"]
-        self.image_size = int(spec["image_size"])
+    ``model`` offers ``encode``, ``generate`` and, for retrieval-based methods, ``database_tokens``
+    and ``spe_distances`` (see :class:`readjax.methods.read.ReadModel`).
+    """
+
+    def __init__(self, model, database: store.Dataset, n_steps: int | None = None):
+        self.model = model
+        self.run_dir, self.spec, self.camera = model.run_dir, model.spec, model.camera
+        self.task = self.spec["task"]
+        self.image_size = model.image_size
         self.database = database
         self.n_steps = 100 if n_steps is None else int(n_steps)
         self.env = tasks.make(self.task)
-        from readjax.methods.read import database_features
-
-        self.db_tokens = database_features(den, den_params, database.rgbd, database.motion)
         self.db_uv = np.asarray(motion_lib.uv(database.motion))
-        self._encode = jax.jit(lambda p, x: den.apply(p, x, method="encode_image"))
+        self.db_tokens = model.database_tokens(database.rgbd, database.motion) if model.uses_retrieval else None
         self._ik = jax.jit(jax.vmap(functools.partial(solve_waypoints, self.env, cfg=ExecConfig())))
 
     @classmethod
     def load(cls, run_dir: str | Path, data_root: str | Path | None = None, n_steps: int | None = None) -> "Planner":
-        from readjax.methods import read
+        from readjax.methods import load_model
 
-        spec, configs, cam, ae, ae_params, den, den_params = read.load(run_dir)
+        model = load_model(run_dir)
+        spec = model.spec
         root = data_root or spec["data_root"]
         ds = store.load_dataset(store.split_dir(root, spec["task"], "train"),
                                 limit=spec.get("episodes") or None)
-        if ds.fingerprint_matches(spec["dataset_fingerprint"], spec["image_size"]) is False:
+        if not ds.fingerprint_matches(spec["dataset_fingerprint"], spec["image_size"]):
             raise store.DatasetError(f"the training set at {root} is not the one {run_dir} was trained on")
-        return cls(run_dir, spec, configs, cam, ae, ae_params, den, den_params, ds.resized(spec["image_size"]),
-                   n_steps)
+        return cls(model, ds.resized(spec["image_size"]), n_steps)
 
     # ---------------------------------------------------------------- input checks
     def check_rgbd(self, rgbd) -> np.ndarray:
@@ -91,13 +88,14 @@ class Planner:
 
     # ---------------------------------------------------------------- planning
     def encode(self, rgbd) -> jax.Array:
-        return self._encode(self.den_params, jnp.asarray(self.check_rgbd(rgbd)))
+        return self.model.encode(jnp.asarray(self.check_rgbd(rgbd)))
 
     def retrieve(self, features, method: str = "spe", gt_motion=None, rank: int = 1) -> np.ndarray:
         """Database indices: SPE (section 7) or the oracle's ``rank``-th neighbour of ``gt_motion``."""
         if method == "spe":
-            d = retrieval.spe_distances(self.den, self.den_params, features, self.db_uv, self.db_tokens)
-            return np.argmin(d, axis=1)
+            if not self.model.uses_retrieval:
+                raise ValueError(f"{self.spec['method']} has no retrieval features; use retrieval 'cheat' or none")
+            return np.argmin(self.model.spe_distances(features, self.db_uv, self.db_tokens), axis=1)
         if method == "cheat":
             if gt_motion is None:
                 raise ValueError("oracle ('cheat') retrieval needs the ground-truth motions (gt_motion=)")
@@ -112,10 +110,12 @@ class Planner:
         if not isinstance(n, (int, np.integer)) or n < 0:
             raise ValueError(f"N must be a non-negative integer, got {n!r}")
         feats = self.encode(rgbd)
-        idx = self.retrieve(feats, retrieval_method, gt_motion, rank)
+        if self.model.uses_retrieval or retrieval_method == "cheat":
+            idx = self.retrieve(feats, retrieval_method, gt_motion, rank)
+        else:  # methods without retrieval start from noise; report the first database entry
+            idx = np.zeros(feats.shape[0], np.int64)
         m_r = jnp.asarray(self.database.motion[idx])
-        m = refine(self.ae, self.ae_params, self.den, self.den_params, feats, m_r, key, int(n),
-                   self.configs["sde"])
+        m = self.model.generate(feats, m_r, key, int(n))
         return self._finish(np.asarray(m), np.asarray(m_r), idx)
 
     def _finish(self, m, m_r, idx) -> Plan:

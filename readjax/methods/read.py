@@ -115,25 +115,48 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     return base.read_run(run_dir)
 
 
-def load(run_dir: str | Path):
-    """(run spec, configs, ae, ae_params, denoiser, denoiser_params) of a trained READ run."""
-    run_dir = Path(run_dir)
-    spec = base.read_run(run_dir)
-    configs = base.configs_from_dict(spec["configs"])
-    from readjax.sim.camera import CameraParams
+class ReadModel:
+    """A trained READ run, behind the interface every method's model offers the planner:
 
-    cam = CameraParams.from_dict(spec["camera"])
-    env = tasks.make(spec["task"])
-    ae, den = build_modules(configs, env.chain, cam)
-    key = jax.random.key(configs["train"].seed)
-    k_ae, k_den = jax.random.split(key)
-    cfg_dict = base.configs_to_dict(configs)
-    ae_params = base.stage_params(run_dir, "vae", vae_spec(configs["train"]), init_ae(ae, k_ae),
-                                  {"vae": cfg_dict["vae"], "train": cfg_dict["train"]}, spec["dataset_fingerprint"])
-    den_params = base.stage_params(run_dir, "read", denoiser_spec(configs["train"]),
-                                   init_denoiser(den, configs["denoiser"].image_size, k_den), cfg_dict,
-                                   spec["dataset_fingerprint"])
-    return spec, configs, cam, ae, ae_params, den, den_params
+    ``encode(images)`` -> per-image features (computed once), ``tokens(features, uv)`` -> image
+    features along motions (SPE retrieval), ``generate(features, m_r, key, n_steps)`` -> motions.
+    """
+
+    uses_retrieval = True
+
+    def __init__(self, run_dir: str | Path):
+        from readjax.sim.camera import CameraParams
+
+        self.run_dir = Path(run_dir)
+        self.spec = base.read_run(self.run_dir)
+        self.configs = configs = base.configs_from_dict(self.spec["configs"])
+        self.camera = CameraParams.from_dict(self.spec["camera"])
+        self.image_size = int(self.spec["image_size"])
+        env = tasks.make(self.spec["task"])
+        self.ae, self.den = build_modules(configs, env.chain, self.camera)
+        k_ae, k_den = jax.random.split(jax.random.key(configs["train"].seed))
+        cfg_dict = base.configs_to_dict(configs)
+        fp = self.spec["dataset_fingerprint"]
+        self.ae_params = base.stage_params(self.run_dir, "vae", vae_spec(configs["train"]), init_ae(self.ae, k_ae),
+                                           {"vae": cfg_dict["vae"], "train": cfg_dict["train"]}, fp)
+        self.den_params = base.stage_params(self.run_dir, "read", denoiser_spec(configs["train"]),
+                                            init_denoiser(self.den, self.image_size, k_den), cfg_dict, fp)
+        self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
+
+    def encode(self, images: jax.Array) -> jax.Array:
+        return self._encode(self.den_params, images)
+
+    def database_tokens(self, images: np.ndarray, motions: np.ndarray) -> np.ndarray:
+        return database_features(self.den, self.den_params, images, motions)
+
+    def spe_distances(self, features, db_uv, db_tokens) -> np.ndarray:
+        return retrieval.spe_distances(self.den, self.den_params, features, db_uv, db_tokens)
+
+    def generate(self, features, m_r, key, n_steps: int) -> jax.Array:
+        from readjax.diffusion.refine import refine
+
+        return refine(self.ae, self.ae_params, self.den, self.den_params, features, jnp.asarray(m_r), key,
+                      int(n_steps), self.configs["sde"])
 
 
 @partial(jax.jit, static_argnums=(0,))
