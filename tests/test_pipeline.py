@@ -3,6 +3,8 @@ and the planner's input checks."""
 
 from __future__ import annotations
 
+import json
+
 import jax
 import numpy as np
 import pytest
@@ -80,3 +82,28 @@ def test_planner_api_and_bad_input(run):
 def test_missing_run_is_a_clear_error(tmp_path, capsys):
     assert _cli.run(evaluate_cli.main, ["--run", str(tmp_path / "nope")]) == 2
     assert "not a training run" in capsys.readouterr().err
+
+
+def test_sweep_resumes_and_reports(run, tmp_path):
+    from experiments import report as report_cli
+    from experiments import sweep as sweep_cli
+
+    data, _ = run
+    argv = ["--task", "RT", "--grid", "N=0,1", "L=0.3,0.5", "--episodes", "2", "--batch-size", "2",
+            "--data", str(data), "--out", str(tmp_path), "--quiet"] + sum((["--set", s] for s in TINY), [])
+    assert _cli.run(sweep_cli.main, argv) == 0
+    sweep_dir = tmp_path / "reach_target" / "sweep"
+    cells = json.loads((sweep_dir / "sweep.json").read_text())["cells"]
+    assert [(c["N"], c["L"]) for c in cells] == [(0, 0.3), (1, 0.3), (0, 0.5), (1, 0.5)]
+    assert (sweep_dir / "sweep.png").exists() and "| setting | N | K | L | T |" in (sweep_dir / "table.md").read_text()
+    # the autoencoder is trained once and shared across L values
+    assert (sweep_dir / "L0.5" / "vae" / "metrics.jsonl").read_text() == \
+        (sweep_dir / "L0.3" / "vae" / "metrics.jsonl").read_text()
+    stamps = {f: f.stat().st_mtime_ns for f in sweep_dir.rglob("*.json") if "eval" in f.parts}
+    assert len(stamps) == 4
+    assert _cli.run(sweep_cli.main, argv) == 0  # a finished sweep recomputes nothing
+    assert {f: f.stat().st_mtime_ns for f in stamps} == stamps
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(tmp_path), "--out", str(out)]) == 0
+    text = out.read_text()
+    assert "| method | RT | Avg |" in text and "retrieval only (N=0)" in text and out.with_suffix(".png").exists()

@@ -46,6 +46,14 @@ def denoiser_spec(train) -> StageSpec:
                      seed=train.seed + 1)
 
 
+VAE_TRAIN_FIELDS = ("episodes", "vae_steps", "vae_batch", "vae_lr", "seed", "ckpt_every", "log_every")
+
+
+def vae_stage_config(cfg_dict: dict) -> dict:
+    """What the autoencoder stage depends on: runs differing only in K, L, T, ... share it."""
+    return {"vae": cfg_dict["vae"], "train": {k: cfg_dict["train"][k] for k in VAE_TRAIN_FIELDS}}
+
+
 def ae_loss(ae):
     def loss_fn(params, batch, rng):
         return ae.apply(params, batch, rng, method="loss")
@@ -91,7 +99,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     k_ae, k_den = jax.random.split(key)
     seed = train_cfg.seed
     vspec = vae_spec(train_cfg)
-    ae_cfg = {"vae": cfg_dict["vae"], "train": cfg_dict["train"]}
+    ae_cfg = vae_stage_config(cfg_dict)
     if "vae" in stages:
         def vae_batch(step):
             idx = base.sample_indices(len(ds), vspec.batch_size, seed, step)
@@ -138,7 +146,7 @@ class ReadModel:
         cfg_dict = base.configs_to_dict(configs)
         fp = self.spec["dataset_fingerprint"]
         self.ae_params = base.stage_params(self.run_dir, "vae", vae_spec(configs["train"]), init_ae(self.ae, k_ae),
-                                           {"vae": cfg_dict["vae"], "train": cfg_dict["train"]}, fp)
+                                           vae_stage_config(cfg_dict), fp)
         self.den_params = base.stage_params(self.run_dir, "read", denoiser_spec(configs["train"]),
                                             init_denoiser(self.den, self.image_size, k_den), cfg_dict, fp)
         self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))

@@ -1,0 +1,34 @@
+"""Collect every evaluation under a runs folder into the paper's tables (methods x tasks,
+Avg12/Avg16 where present), a bar chart PNG, sweep tables, software versions and seeds.
+
+example:
+  python -m experiments.report --runs runs/ --out docs/results.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from experiments import _cli
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m experiments.report", description=__doc__,
+                                formatter_class=_cli.HelpFormatter)
+    p.add_argument("--runs", default="runs", help="runs root to scan for */eval/*.json and sweep.json")
+    p.add_argument("--out", default="docs/results.md", help="markdown output (the chart goes beside it)")
+    return p
+
+
+def main(argv=None) -> None:
+    args = parser().parse_args(argv)
+    from readjax.report import write_report
+
+    text = write_report(args.runs, args.out)
+    print(text.split("## Provenance")[0])
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    sys.exit(_cli.run(main))

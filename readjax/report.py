@@ -1,0 +1,110 @@
+"""Assemble every evaluation under a runs folder into the paper's tables (methods x tasks with
+Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenance."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from readjax import tasks
+from readjax.evaluation import success_table
+
+
+def collect(runs_root: str | Path) -> list[dict]:
+    """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``."""
+    out = []
+    for f in sorted(Path(runs_root).rglob("eval/*.json")):
+        try:
+            r = json.loads(f.read_text())
+        except json.JSONDecodeError:
+            continue
+        if "success_rate" not in r or "task" not in r:
+            continue
+        r["_run_name"] = f.parent.parent.name
+        r["_file"] = str(f)
+        out.append(r)
+    return out
+
+
+def row_label(r: dict) -> str:
+    name = r.get("name", "eval")
+    cfg = r.get("eval_config", {})
+    if cfg.get("N") == 0 and cfg.get("retrieval") == "spe":
+        return f"{r['_run_name']}: retrieval only (N=0)"
+    return f"{r['_run_name']}: {name}"
+
+
+def tables(results: list[dict]) -> dict[str, dict[str, float]]:
+    rows: dict[str, dict[str, float]] = {}
+    for r in results:
+        rows.setdefault(row_label(r), {})[r["task"]] = r["success_rate"]
+    return {label: success_table(rates) for label, rates in sorted(rows.items())}
+
+
+def markdown_table(table: dict[str, dict[str, float]]) -> str:
+    cols = [c for c in list(tasks.AVG16) + ["Avg", "Avg12", "Avg16"] if any(c in r for r in table.values())]
+    lines = ["| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for label, r in table.items():
+        lines.append(f"| {label} | " + " | ".join(f"{r[c]:.1f}" if c in r else "–" for c in cols) + " |")
+    return "\n".join(lines)
+
+
+def bar_chart(table: dict[str, dict[str, float]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cols = [c for c in list(tasks.AVG16) + ["Avg", "Avg12", "Avg16"] if any(c in r for r in table.values())]
+    labels = list(table)
+    width = 0.8 / max(len(labels), 1)
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(cols) + 2), 3.8))
+    x = np.arange(len(cols))
+    for i, label in enumerate(labels):
+        ax.bar(x + i * width - 0.4 + width / 2, [table[label].get(c, 0.0) for c in cols], width, label=label)
+    ax.set_xticks(x, cols)
+    ax.set_ylabel("success (%)")
+    ax.set_ylim(0, 105)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def sweeps(runs_root: str | Path) -> list[dict]:
+    return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))]
+
+
+def write_report(runs_root: str | Path, out: str | Path) -> str:
+    from readjax.sweep import format_table7
+
+    results = collect(runs_root)
+    if not results:
+        raise FileNotFoundError(f"no evaluation results under {runs_root} (run experiments.evaluate first)")
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    table = tables(results)
+    chart = out.with_suffix(".png")
+    bar_chart(table, chart)
+    versions = results[0].get("versions", {})
+    seeds = sorted({(r["task"], min(r["seeds"]), max(r["seeds"]), len(r["seeds"])) for r in results if r.get("seeds")})
+    lines = [
+        "# Results", "",
+        f"Every evaluation found under `{runs_root}` ({len(results)} result files), success rate in % over "
+        "the fixed test episodes. Avg12/Avg16 appear only when all their tasks are present; otherwise "
+        "`Avg` is the mean over the tasks present.", "",
+        markdown_table(table), "", f"![success by task]({chart.name})", "",
+    ]
+    for sw in sweeps(runs_root):
+        lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
+                  format_table7(sw), ""]
+    lines += ["## Provenance", "", "| package | version |", "|---|---|"]
+    lines += [f"| {k} | {v} |" for k, v in versions.items()]
+    lines += ["", "| task | test seeds | episodes |", "|---|---|---|"]
+    lines += [f"| {t} | {a}..{b} | {n} |" for t, a, b, n in seeds]
+    lines += ["", "Result files:", ""] + [f"- `{r['_file']}`" for r in results]
+    text = "\n".join(lines) + "\n"
+    out.write_text(text)
+    return text

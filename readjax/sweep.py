@@ -1,0 +1,171 @@
+"""Hyper-parameter sweeps over Table 7's N / K / L / T (METHOD.md section 9).
+
+N (refinement steps) is test-time only: one trained model serves every N. K (neighbour pool),
+L (lambda) and T (theta1) change training, so each of their combinations is its own run; the
+autoencoder stage does not depend on them and is trained once and shared. Every finished cell
+(a training run, an evaluation) is kept on disk and skipped when the sweep is run again.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from readjax import methods, tasks
+from readjax.methods import base
+
+TEST_TIME = ("N",)
+TRAIN_KEYS = {"K": "train.K", "L": "sde.lam", "T": "sde.theta1"}
+DEFAULTS = {"N": 100, "K": 3, "L": 0.5, "T": 2.0}  # the paper's setting A
+
+
+def parse_grid(items) -> dict[str, list]:
+    """["N=1,10,100", "L=0.1,0.5"] -> {"N": [1, 10, 100], "L": [0.1, 0.5]}."""
+    grid = {}
+    for item in items:
+        if "=" not in item:
+            raise ValueError(f"grid entry {item!r} is not of the form KEY=v1,v2,...")
+        key, values = item.split("=", 1)
+        key = key.strip()
+        if key not in DEFAULTS:
+            raise ValueError(f"cannot sweep {key!r}; sweepable: {', '.join(DEFAULTS)}")
+        try:
+            vals = [int(v) if key in ("N", "K") else float(v) for v in values.split(",") if v.strip()]
+        except ValueError:
+            raise ValueError(f"grid {key}: expected numbers, got {values!r}") from None
+        if not vals:
+            raise ValueError(f"grid {key} has no values")
+        if key in ("N", "K") and min(vals) < (0 if key == "N" else 1):
+            raise ValueError(f"grid {key} values must be >= {0 if key == 'N' else 1}")
+        grid[key] = vals
+    if not grid:
+        raise ValueError("empty grid: give at least one of N=..., K=..., L=..., T=...")
+    return grid
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    task: str
+    grid: dict = field(default_factory=dict)
+    model: str = "read"
+    preset: str = "cpu"
+    data: str = "data"
+    out: str = "runs"
+    name: str = "sweep"
+    episodes: int = 100
+    sets: tuple = ()
+    batch_size: int = 50
+
+
+def _label(v) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
+    from readjax import evaluation
+    from readjax.data import store
+    from readjax.data.generate import GenerateConfig, generate
+    from readjax.planner import Planner
+
+    task = tasks.canonical_name(cfg.task)
+    sweep_dir = Path(cfg.out) / task / cfg.name
+    train_keys = [k for k in TRAIN_KEYS if k in cfg.grid]
+    n_values = cfg.grid.get("N", [DEFAULTS["N"]])
+    combos = list(itertools.product(*[cfg.grid[k] for k in train_keys])) or [()]
+    test_dir = store.split_dir(cfg.data, task, "test")
+    if not test_dir.exists() or store.read_progress(test_dir).kept < cfg.episodes:
+        meta = store.read_meta(store.split_dir(cfg.data, task, "train")) or {}
+        generate(GenerateConfig(task=task, split="test", episodes=cfg.episodes, out=cfg.data,
+                                image_size=meta.get("image_size", 64)), progress=progress)
+    test_ds = store.load_dataset(test_dir, limit=cfg.episodes)
+    cells, shared_vae = [], None
+    for combo in combos:
+        values = dict(zip(train_keys, combo))
+        run_name = "_".join(f"{k}{_label(v)}" for k, v in values.items()) or "default"
+        run_dir = sweep_dir / run_name
+        overrides = list(cfg.sets) + [f"{TRAIN_KEYS[k]}={v}" for k, v in values.items()]
+        configs = base.override(base.presets(cfg.preset), overrides)
+        if shared_vae is not None and "vae" in methods.stages(cfg.model) and not (run_dir / "vae").exists():
+            run_dir.mkdir(parents=True, exist_ok=True)
+            shutil.copytree(shared_vae, run_dir / "vae")  # the autoencoder ignores K, L, T
+        methods.module(cfg.model).train(task, cfg.data, run_dir, configs, cfg.preset, progress=progress)
+        if (run_dir / "vae").exists():
+            shared_vae = shared_vae or run_dir / "vae"
+        planner = None
+        for n in n_values:
+            name = f"sweep_N{n}"
+            f = run_dir / "eval" / f"{name}.json"
+            if f.exists():
+                result = json.loads(f.read_text())
+            else:
+                planner = planner or Planner.load(run_dir, data_root=cfg.data)
+                ecfg = evaluation.EvalConfig(episodes=cfg.episodes, N=n, batch_size=min(cfg.batch_size, cfg.episodes),
+                                             videos=0)
+                result = evaluation.evaluate(planner, test_ds, ecfg, out_dir=run_dir / "eval", name=name,
+                                             progress=progress)
+            full = {**DEFAULTS, **values, "N": n}
+            cells.append({**full, "run": str(run_dir), "success": result["success_rate"],
+                          "table": result["table"]})
+            if progress:
+                print(f"  {task} " + " ".join(f"{k}={_label(full[k])}" for k in DEFAULTS)
+                      + f": {100 * result['success_rate']:.1f}%", flush=True)
+    out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
+           "grid": cfg.grid, "episodes": cfg.episodes, "cells": cells}
+    sweep_dir.mkdir(parents=True, exist_ok=True)
+    (sweep_dir / "sweep.json").write_text(json.dumps(out, indent=2))
+    (sweep_dir / "table.md").write_text(format_table7(out))
+    plot_sweep(out, sweep_dir / "sweep.png")
+    return out
+
+
+def format_table7(sweep: dict) -> str:
+    """The layout of the paper's Table 7: setting, N, K, L, T, success (%)."""
+    code = sweep["code"]
+    lines = [f"| setting | N | K | L | T | {code} |", "|---|---|---|---|---|---|"]
+    for i, c in enumerate(sweep["cells"]):
+        default = all(c[k] == v for k, v in DEFAULTS.items())
+        tag = "A (default)" if default else chr(ord("B") + i) if i < 25 else str(i)
+        lines.append(f"| {tag} | {c['N']} | {c['K']} | {_label(c['L'])} | {_label(c['T'])} | "
+                     f"{100 * c['success']:.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_sweep(sweep: dict, path: Path) -> None:
+    """Success against each swept value (one panel per key; other keys' values as separate lines)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    keys = list(sweep["grid"])
+    fig, axes = plt.subplots(1, len(keys), figsize=(4 * len(keys), 3.2), squeeze=False)
+    for ax, key in zip(axes[0], keys):
+        others = [k for k in keys if k != key]
+        groups: dict = {}
+        for c in sweep["cells"]:
+            groups.setdefault(tuple(c[k] for k in others), []).append((c[key], 100 * c["success"]))
+        for g, pts in groups.items():
+            pts.sort()
+            xs, ys = zip(*pts)
+            label = ", ".join(f"{k}={_label(v)}" for k, v in zip(others, g)) or None
+            ax.plot(range(len(xs)) if key == "N" else xs, ys, marker="o", label=label)
+            if key == "N":
+                ax.set_xticks(range(len(xs)), [str(x) for x in xs])
+        ax.set_xlabel(key)
+        ax.set_ylabel(f"{sweep['code']} success (%)")
+        ax.set_ylim(-3, 103)
+        if len(groups) > 1:
+            ax.legend(fontsize=7)
+    fig.suptitle(f"{sweep['model']} on {sweep['task']} ({sweep['episodes']} episodes per cell)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def success_matrix(sweep: dict) -> np.ndarray:
+    return np.array([c["success"] for c in sweep["cells"]])
