@@ -85,6 +85,67 @@ def bench_sim(args) -> dict:
     return results
 
 
+def bench_planner(args) -> dict:
+    """ms per plan (encode + SPE retrieval + N refinement steps + IK) with random parameters:
+    latency does not depend on training. Cells predicted to exceed --max-seconds are skipped."""
+    import jax
+    import numpy as np
+
+    from readjax import provenance, tasks
+    from readjax.data.store import Dataset
+    from readjax.methods import base
+    from readjax.methods.read import ReadModel
+    from readjax.planner import Planner
+    from readjax.sim.camera import camera_from_model
+
+    env = tasks.make("reach_target")
+    results = {"versions": provenance.versions(), "machine": provenance.machine(), "cells": []}
+    for preset in args.presets:
+        configs = base.presets(preset)
+        size = configs["denoiser"].image_size
+        cam = camera_from_model(env.mj_model, "front", size, size)
+        model = ReadModel.random("reach_target", configs, cam, jax.random.key(0))
+        rng = np.random.default_rng(0)
+        n_db = args.database
+        from readjax.data import motion as mo
+
+        t = np.linspace(0, 1, mo.FRAMES)[None, :, None]
+        pos = rng.uniform([0.3, -0.3, 0.1], [0.7, 0.3, 0.5], (n_db, 1, 3)) * t + (1 - t) * np.array([0.31, 0, 0.49])
+        rot = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (n_db, mo.FRAMES, 3, 3))
+        motions = np.asarray(mo.encode(cam, pos.astype(np.float32), rot.astype(np.float32),
+                                       np.ones((n_db, mo.FRAMES), np.float32)))
+        db = Dataset("reach_target", "train", cam, rng.uniform(size=(n_db, size, size, 4)).astype(np.float32),
+                     motions, np.zeros((n_db, mo.FRAMES, 7), np.float32), np.arange(n_db))
+        t0 = time.perf_counter()
+        planner = Planner(model, db)
+        setup = time.perf_counter() - t0
+        print(f"{preset}: planner set-up (database features for {n_db}) {setup:.1f}s", flush=True)
+        per_step = {}
+        for b in args.batch_sizes:
+            images = rng.uniform(size=(b, size, size, 4)).astype(np.float32)
+            for n in sorted(args.N):
+                est = per_step.get(b, 0) * n
+                if est > args.max_seconds:
+                    print(f"{preset} B={b:<3} N={n:<4} skipped (estimated {est:.0f}s > --max-seconds)", flush=True)
+                    results["cells"].append({"preset": preset, "batch": b, "N": n, "skipped": True,
+                                             "estimated_s": round(est, 1)})
+                    continue
+                key = jax.random.key(1)
+                t0 = time.perf_counter()
+                planner.plan(images, key, N=n)
+                first = time.perf_counter() - t0
+                times = _time(lambda: planner.plan(images, key, N=n), args.repeats)
+                t = statistics.median(times)
+                per_step[b] = max(per_step.get(b, 0), t / max(n, 1))
+                cell = {"preset": preset, "batch": b, "N": n, "ms_per_call": round(1e3 * t, 1),
+                        "ms_per_plan": round(1e3 * t / b, 2), "compile_s": round(first - t, 2),
+                        "setup_s": round(setup, 2)}
+                results["cells"].append(cell)
+                print(f"{preset} B={b:<3} N={n:<4} {1e3 * t:9.1f} ms/call {1e3 * t / b:8.2f} ms/plan  "
+                      f"compile {first - t:5.1f}s", flush=True)
+    return results
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.bench", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
@@ -96,6 +157,13 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--c-episodes", type=_cli.positive_int, default=8, help="episodes replayed in C MuJoCo")
     s.add_argument("--out", default="runs/bench/sim.json")
     pl = sub.add_parser("planner", help="planner latency (READ)", formatter_class=_cli.HelpFormatter)
+    pl.add_argument("--presets", nargs="+", default=["cpu", "paper"], choices=["cpu", "paper"])
+    pl.add_argument("--batch-sizes", nargs="+", type=_cli.positive_int, default=[1, 64])
+    pl.add_argument("--N", nargs="+", type=int, default=[1, 10, 100], help="refinement steps")
+    pl.add_argument("--database", type=_cli.positive_int, default=200, help="retrieval database size")
+    pl.add_argument("--repeats", type=_cli.positive_int, default=3)
+    pl.add_argument("--max-seconds", type=float, default=120.0,
+                    help="skip a cell whose single call would exceed this (e.g. the paper preset on a CPU)")
     pl.add_argument("--out", default="runs/bench/planner.json")
     return p
 
@@ -108,8 +176,6 @@ def main(argv=None) -> None:
         args.tasks = list(tasks.names()) if args.tasks == ["all"] else [tasks.canonical_name(t) for t in args.tasks]
         result = bench_sim(args)
     else:
-        from readjax.bench_planner import bench_planner  # noqa: F401  (added with the planner)
-
         result = bench_planner(args)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -151,6 +151,19 @@ class ReadModel:
                                             init_denoiser(self.den, self.image_size, k_den), cfg_dict, fp)
         self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
 
+    @classmethod
+    def random(cls, task: str, configs: dict, camera, key: jax.Array) -> "ReadModel":
+        """An untrained model with random parameters (benchmarks and tests; no run folder)."""
+        self = cls.__new__(cls)
+        self.run_dir, self.configs, self.camera = None, configs, camera
+        self.image_size = configs["denoiser"].image_size
+        self.spec = {"task": task, "method": "read", "image_size": self.image_size, "camera": camera.to_dict()}
+        self.ae, self.den = build_modules(configs, tasks.make(task).chain, camera)
+        k_ae, k_den = jax.random.split(key)
+        self.ae_params, self.den_params = init_ae(self.ae, k_ae), init_denoiser(self.den, self.image_size, k_den)
+        self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
+        return self
+
     def encode(self, images: jax.Array) -> jax.Array:
         return self._encode(self.den_params, images)
 
