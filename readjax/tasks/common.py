@@ -13,7 +13,8 @@ DOWN = jnp.array([0.0, 1.0, 0.0, 0.0])
 
 
 def down_quat(yaw) -> jax.Array:
-    """tcp pointing down, rotated by ``yaw`` about world z (fingers open along Rz(yaw) * y)."""
+    """tcp pointing down, rotated by ``yaw`` about world z; the fingers open along the line of
+    Rz(yaw) * y (the hand's +y axis is -Rz(yaw) * y)."""
     return geo.quat_mul(geo.yaw_quat(jnp.asarray(yaw, jnp.float32)), DOWN)
 
 
