@@ -61,8 +61,10 @@ def ae_loss(ae):
     return loss_fn
 
 
-def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool):
-    """M̂0 = D(I, Dec(z_t), t) with z_t from the latent IR-SDE marginal; sum of per-key MSEs."""
+def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict):
+    """M̂0 = D(I, Dec(z_t), t) with z_t from the latent IR-SDE marginal; per-key MSEs summed with
+    the autoencoder's key weights (METHOD.md sums them unweighted; our z is in metres, so an
+    unweighted sum ignores depth errors of several centimetres)."""
 
     def loss_fn(params, batch, rng):
         k_t, k_n, k_aug, k_drop = jax.random.split(rng, 4)
@@ -75,7 +77,7 @@ def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool):
         m_t = ae.apply(ae_params, irsde.marginal_sample(k_n, z0, z_r, t, sde), method="decode")
         pred = den.apply(params, image, m_t, t, train=True, rngs={"dropout": k_drop})
         per_key = {k: jnp.mean((pred[..., s] - m[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
-        return sum(per_key.values()), per_key
+        return sum(weights[k] * v for k, v in per_key.items()), per_key
 
     return loss_fn
 
@@ -117,7 +119,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
             j = base.neighbour_choice(pairs, idx, dspec.seed, step)
             return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j]}
 
-        loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment)
+        loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights)
         Stage(run_dir, "read", dspec, cfg_dict, ds.fingerprint).fit(
             init_denoiser(den, image_size, k_den), loss, read_batch, progress=progress, stop_at=stop_at)
     return base.read_run(run_dir)
