@@ -1,15 +1,21 @@
-"""The quick demo (`make demo`): generate demonstrations for a task, render its first frames,
-and print the dataset summary. Sized for a laptop CPU: a few minutes.
+"""The quick demo (`make demo`): generate demonstrations, train a small READ, evaluate it on
+fixed test episodes and print the success table — sized for a laptop CPU (~10 minutes).
+
+Steps (each resumable; re-running skips what is done):
+  1. expert demos for the task (batched MJX rollouts) + the fixed test episodes
+  2. READ with the cpu preset, shortened (--steps for both stages)
+  3. evaluation: plans executed in MJX, with and without refinement (N = 0), success table,
+     an overlay of the plans on the input images and a video of rollouts
+  4. the first frame of every task, in one picture
 
 examples:
   python -m experiments.demo
-  python -m experiments.demo --task PB --episodes 64 --out demo_runs
+  python -m experiments.demo --task PB --episodes 100 --steps 1000 --out demo_runs
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -21,35 +27,57 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--task", default="reach_target", help="task name or paper code")
     p.add_argument("--episodes", type=_cli.positive_int, default=64, help="training demos to generate")
-    p.add_argument("--image-size", type=_cli.positive_int, default=64)
-    p.add_argument("--out", default="demo_runs", help="where data/ and the pictures go")
+    p.add_argument("--test-episodes", type=_cli.positive_int, default=20, help="test episodes to evaluate")
+    p.add_argument("--steps", type=_cli.positive_int, default=400, help="training steps per stage")
+    p.add_argument("--N", type=_cli.positive_int, default=10, help="refinement steps at test time")
+    p.add_argument("--out", default="demo_runs", help="where data/, runs/ and the pictures go")
     return p
 
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from PIL import Image
-
-    from readjax import tasks
+    from readjax import evaluation, tasks
+    from readjax.data import store
     from readjax.data.generate import GenerateConfig, generate
+    from readjax.methods import base, read
+    from readjax.planner import Planner
     from readjax.viz import first_frame, label_grid
 
     out = Path(args.out)
     task = tasks.canonical_name(args.task)
-    print(f"[1/2] generating {args.episodes} expert demos of {task} (batched MJX rollouts)", flush=True)
-    summary = generate(GenerateConfig(task=task, split="train", episodes=args.episodes, out=str(out / "data"),
-                                      batch_size=16, image_size=args.image_size))
-    print("[2/2] rendering the first frame of every task", flush=True)
+    data = out / "data"
+    print(f"[1/4] expert demos of {task}: {args.episodes} train + {args.test_episodes} test", flush=True)
+    for split, n in (("train", args.episodes), ("test", args.test_episodes)):
+        s = generate(GenerateConfig(task=task, split=split, episodes=n, out=str(data), batch_size=16, image_size=64))
+        print(f"      {split}: kept {s['episodes_kept']}/{s['episodes_attempted']} "
+              f"(expert success {100 * s['expert_success_rate']:.0f}%)", flush=True)
+    print(f"[2/4] training READ (cpu preset, {args.steps} steps per stage)", flush=True)
+    configs = base.override(base.presets("cpu"), [f"vae_steps={args.steps}", f"steps={args.steps}",
+                                                  f"ckpt_every={max(args.steps // 2, 1)}"])
+    run_dir = out / "runs" / task / "read"
+    read.train(task, data, run_dir, configs, "cpu")
+    print(f"[3/4] evaluating on {args.test_episodes} fixed test episodes", flush=True)
+    planner = Planner.load(run_dir)
+    test = store.load_dataset(store.split_dir(data, task, "test"), limit=args.test_episodes)
+    rows = {}
+    for name, n, videos in ((f"READ (N={args.N})", args.N, 2), ("retrieval only (N=0)", 0, 0)):
+        cfg = evaluation.EvalConfig(episodes=args.test_episodes, N=n, batch_size=min(args.test_episodes, 20),
+                                    videos=videos)
+        r = evaluation.evaluate(planner, test, cfg, out_dir=run_dir / "eval", name=f"demo_N{n}")
+        rows[name] = r["table"]
+    print("[4/4] rendering the first frame of every task", flush=True)
     frames, labels = [], []
     for name in tasks.names():
         env = tasks.make(name)
         frames.append(first_frame(env, 0, 128))
         labels.append(f"{env.code} {name}")
-    grid_path = out / "first_frames.png"
-    label_grid(frames, labels).save(grid_path)
-    keys = ("episodes_kept", "episodes_attempted", "expert_success_rate", "seconds")
-    print(json.dumps({k: summary[k] for k in keys}, indent=2))
-    print(f"dataset: {out / 'data' / task / 'train'}   first frames: {grid_path}")
+    label_grid(frames, labels).save(out / "first_frames.png")
+    print()
+    print(evaluation.format_table(rows))
+    print(f"\nplans over the input images: {run_dir / 'eval' / f'demo_N{args.N}_overlay.png'}")
+    print(f"rollout video: {run_dir / 'eval' / f'demo_N{args.N}_rollouts.mp4'}")
+    print(f"loss curves: {run_dir / 'vae' / 'loss.png'}, {run_dir / 'read' / 'loss.png'}")
+    print(f"first frames of all tasks: {out / 'first_frames.png'}")
 
 
 if __name__ == "__main__":
