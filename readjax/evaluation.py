@@ -18,7 +18,6 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from readjax import geometry as geo
 from readjax import sharding, tasks
 from readjax.data import motion as motion_lib
 from readjax.sim import ik

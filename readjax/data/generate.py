@@ -18,7 +18,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import provenance, sharding, tasks
-from readjax.data import motion as motion_lib
 from readjax.data import store
 from readjax.data.resample import resample_demo
 from readjax.sim import camera as cam_lib

@@ -14,6 +14,12 @@ from readjax.methods import base
 # method name -> (module, model class, training stages)
 METHODS = {
     "read": ("readjax.methods.read", "ReadModel", ("vae", "read")),
+    # METHOD.md section 10: variants and baselines
+    "read_o": ("readjax.methods.read_o", "ReadOModel", ("read_o",)),
+    "read_l": ("readjax.methods.read_l", "ReadLModel", ("vae", "read_l")),
+    "deterministic": ("readjax.methods.deterministic", "DeterministicModel", ("deterministic",)),
+    "vpsde": ("readjax.methods.vpsde", "VPSDEModel", ("vpsde",)),
+    "vpsde_cg": ("readjax.methods.vpsde_cg", "VPSDECGModel", ("vpsde_cg",)),
 }
 
 

@@ -51,7 +51,8 @@ TRAIN_PRESETS = {
 
 
 def presets(name: str) -> dict[str, Any]:
-    """All configs of a preset: vae, denoiser, sde (model) and train."""
+    """All configs of a preset: vae, denoiser, sde (READ), resnet, vpsde, read_o (baselines and
+    variants, ``config.METHOD_SECTIONS``) and train."""
     if name not in TRAIN_PRESETS:
         raise ValueError(f"unknown preset {name!r}; known: {', '.join(TRAIN_PRESETS)}")
     return dict(cfg_lib.preset(name), train=TRAIN_PRESETS[name])
@@ -96,8 +97,17 @@ def _parse(text: str, tp, where: str):
         raise ValueError(f"{where}: expected {tp.__name__}, got {text!r}") from None
 
 
-def configs_to_dict(configs: dict[str, Any]) -> dict:
-    d = cfg_lib.to_dict({k: v for k, v in configs.items() if k != "train"})
+def configs_to_dict(configs: dict[str, Any], sections=None) -> dict:
+    """JSON-ready configs of a run: ``sections`` (default: every section except the method-specific
+    ``config.METHOD_SECTIONS``, i.e. READ's vae/denoiser/sde) plus train."""
+    if sections is None:
+        keep = [k for k in configs if k != "train" and k not in cfg_lib.METHOD_SECTIONS]
+    else:
+        missing = [k for k in sections if k not in configs]
+        if missing:
+            raise ValueError(f"configs have no section(s) {missing}")
+        keep = list(sections)
+    d = cfg_lib.to_dict({k: configs[k] for k in keep})
     d["train"] = dataclasses.asdict(configs["train"])
     return d
 

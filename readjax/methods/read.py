@@ -13,7 +13,7 @@ import numpy as np
 from readjax import retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde
-from readjax.methods import base
+from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb
 from readjax.models.denoiser import Denoiser
 from readjax.models.kinematic_vae import make_autoencoder
@@ -82,6 +82,18 @@ def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict):
     return loss_fn
 
 
+def fit_autoencoder(run_dir: Path, ds, ae, key, train_cfg, cfg_dict: dict, progress: bool, stop_at) -> None:
+    """The ``vae/`` stage (shared by READ and READ-L, and by runs differing only in K, L, T)."""
+    vspec = vae_spec(train_cfg)
+
+    def vae_batch(step):
+        idx = base.sample_indices(len(ds), vspec.batch_size, train_cfg.seed, step)
+        return {"motion": ds.motion[idx], "joints": ds.joints[idx]}
+
+    Stage(run_dir, "vae", vspec, vae_stage_config(cfg_dict), ds.fingerprint).fit(
+        init_ae(ae, key), ae_loss(ae), vae_batch, progress=progress, stop_at=stop_at)
+
+
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
           stages=("vae", "read"), progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ for a task; each stage resumes from its latest checkpoint. Returns run.json."""
@@ -99,16 +111,10 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     base.write_run(run_dir, spec)
     key = jax.random.key(train_cfg.seed)
     k_ae, k_den = jax.random.split(key)
-    seed = train_cfg.seed
     vspec = vae_spec(train_cfg)
     ae_cfg = vae_stage_config(cfg_dict)
     if "vae" in stages:
-        def vae_batch(step):
-            idx = base.sample_indices(len(ds), vspec.batch_size, seed, step)
-            return {"motion": ds.motion[idx], "joints": ds.joints[idx]}
-
-        Stage(run_dir, "vae", vspec, ae_cfg, ds.fingerprint).fit(
-            init_ae(ae, k_ae), ae_loss(ae), vae_batch, progress=progress, stop_at=stop_at)
+        fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
     if "read" in stages:
         ae_params = base.stage_params(run_dir, "vae", vspec, init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
         dspec = denoiser_spec(train_cfg)
@@ -125,7 +131,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     return base.read_run(run_dir)
 
 
-class ReadModel:
+class ReadModel(common.DenoiserRunModel):
     """A trained READ run, behind the interface every method's model offers the planner:
 
     ``encode(images)`` -> per-image features (computed once), ``tokens(features, uv)`` -> image
@@ -165,15 +171,6 @@ class ReadModel:
         self.ae_params, self.den_params = init_ae(self.ae, k_ae), init_denoiser(self.den, self.image_size, k_den)
         self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
         return self
-
-    def encode(self, images: jax.Array) -> jax.Array:
-        return self._encode(self.den_params, images)
-
-    def database_tokens(self, images: np.ndarray, motions: np.ndarray) -> np.ndarray:
-        return database_features(self.den, self.den_params, images, motions)
-
-    def spe_distances(self, features, db_uv, db_tokens) -> np.ndarray:
-        return retrieval.spe_distances(self.den, self.den_params, features, db_uv, db_tokens)
 
     def generate(self, features, m_r, key, n_steps: int) -> jax.Array:
         from readjax.diffusion.refine import refine

@@ -85,14 +85,16 @@ class Denoiser(nn.Module):
       bilinearly sampled at uv (B, T, 2) — what the transformer sees, and what SPE retrieval
       (METHOD.md section 7) compares; T is arbitrary;
     * ``feature_map(image, train=False) -> (B, H, W, C)``: the full map itself (inspection, tests);
-    * ``denoise(features, motion_t, t, cond=None, cond_keep=None) -> (B, 101, 10)``;
-    * ``__call__(image, motion_t, t, cond=None, cond_keep=None, train=False)`` = encode + denoise
+    * ``denoise(features, motion_t, t, cond=None, cond_keep=None, uv=None) -> (B, 101, 10)``;
+    * ``__call__(image, motion_t, t, cond=None, cond_keep=None, train=False, uv=None)`` = encode + denoise
       (for init and training). Training with drop-path needs ``train=True`` and
       ``rngs={"dropout": key}``.
 
     ``t`` is a scalar or (B,). ``cond`` (B, 101, 10) is only accepted when ``use_cond``; with
     ``use_cond`` and ``cond=None`` the conditioning tokens are all masked (unconditional).
-    ``cond_keep`` (B,) bool masks them per sample.
+    ``cond_keep`` (B,) bool masks them per sample. ``uv`` (B, 101, 2), when given, is where the image
+    tokens are sampled instead of ``motion_t``'s own uv (the baselines that diffuse normalised
+    motions feed the normalised motion and sample at its real uv); None keeps READ's behaviour.
     """
 
     cfg: DenoiserConfig
@@ -112,8 +114,8 @@ class Denoiser(nn.Module):
         self.layers = [EncoderLayer(d, c.heads, c.ffn) for _ in range(c.layers)]
         self.heads = {k: MLP((d // 2, d // 2, dim)) for k, dim in KEY_DIMS.items()}
 
-    def __call__(self, image, motion_t, t, cond=None, cond_keep=None, train: bool = False):
-        return self.denoise(self.encode_image(image, train), motion_t, t, cond, cond_keep)
+    def __call__(self, image, motion_t, t, cond=None, cond_keep=None, train: bool = False, uv=None):
+        return self.denoise(self.encode_image(image, train), motion_t, t, cond, cond_keep, uv)
 
     def encode_image(self, image, train: bool = False):
         """The per-image feature cache (computed once per image, reused at every step)."""
@@ -127,7 +129,7 @@ class Denoiser(nn.Module):
         """The full-resolution C-channel feature map (B, H, W, C)."""
         return self.unet(image, train)
 
-    def denoise(self, features, motion_t, t, cond=None, cond_keep=None):
+    def denoise(self, features, motion_t, t, cond=None, cond_keep=None, uv=None):
         c = self.cfg
         d = c.d_model
         check_motion_shape(motion_t, "motion_t")
@@ -143,7 +145,11 @@ class Denoiser(nn.Module):
         motion_tok = self.motion_embed(motion_t)
         time_tok = self.time_embed(time_features(t, d))[:, None, :]
         seq = jnp.concatenate([motion_tok, time_tok], axis=1) + sinusoidal_positions(mo.FRAMES + 1, d)
-        img = self.image_tokens(features, mo.uv(motion_t))
+        if uv is None:
+            uv = mo.uv(motion_t)
+        elif uv.shape != (b, mo.FRAMES, 2):
+            raise ValueError(f"uv must have shape ({b}, {mo.FRAMES}, 2), got {uv.shape}")
+        img = self.image_tokens(features, uv)
         if self.image_proj is not None:
             img = self.image_proj(img)
         tokens = [seq, img + sinusoidal_positions(mo.FRAMES, d)]

@@ -68,7 +68,9 @@ def test_loss_terms_and_checks(kae, batch):
     model, params, fn = kae
     total, m = fn["loss"](params, batch, None)
     assert set(m) == {"loss", "kl", "joints", "uv", "z", "rot6d", "grip"}
-    expect = m["rot6d"] + 10 * m["uv"] + m["z"] + m["grip"] + m["joints"] + 0.01 * m["kl"]
+    w = KIN_VAE.loss_weights
+    expect = (sum(w[k] * m[k] for k in ("uv", "z", "rot6d", "grip")) + KIN_VAE.w_joint * m["joints"]
+              + KIN_VAE.kl_weight * m["kl"])
     np.testing.assert_allclose(total, expect, rtol=1e-5)
     with pytest.raises(ValueError, match="joints"):
         model.apply(params, {"motion": batch["motion"]}, method="loss")

@@ -60,7 +60,8 @@ def test_loss_terms(vae, batch):
     mu, logvar = fn["encode"](params, batch["motion"])
     rec = fn["decode"](params, mu)
     mse = motion_mse(rec, batch["motion"])
-    expect = mse["rot6d"] + 10 * mse["uv"] + mse["z"] + mse["grip"] + 0.01 * kl_divergence(mu, logvar)
+    w = TINY_VAE.loss_weights  # uv 10, z 100 (metres), rot6d 1, grip 1
+    expect = sum(w[k] * mse[k] for k in w) + TINY_VAE.kl_weight * kl_divergence(mu, logvar)
     np.testing.assert_allclose(total, expect, rtol=1e-5)
     assert set(metrics) == {"loss", "kl", "uv", "z", "rot6d", "grip"}
     # key=None is deterministic (z = mu); a key samples z

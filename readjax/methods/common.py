@@ -1,0 +1,161 @@
+"""What the baselines and variants of METHOD.md section 10 share: run preparation, the motion
+normaliser of the task-space diffusion models, per-key losses and the model-side plumbing the
+planner needs (run folder, camera, image encoding, SPE retrieval features).
+
+Motion normalisation (VPSDE, VPSDE+CG, READ-O): per-dimension mean and std of the 10 motion
+channels over every frame of every training demo (std floored at ``STD_FLOOR`` so constant channels
+stay finite), written to ``RUN/normalizer.json`` when training starts and read back by the model.
+The diffusion state lives in normalised units and the denoiser embeds it as such (a channel
+with a tiny spread, e.g. a fixed orientation, would otherwise hide its noise from the network),
+but its image tokens are sampled at the state's real, denormalised uv (:func:`real_uv`, the
+Denoiser's ``uv`` argument); its eps output is in normalised units.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from readjax import retrieval, tasks
+from readjax.data import motion as motion_lib
+from readjax.methods import base
+from readjax.training import CheckpointError
+
+NORMALIZER_FILE = "normalizer.json"
+STD_FLOOR = 1e-2
+
+
+# ------------------------------------------------------------------ normaliser
+
+def motion_stats(motions) -> tuple[np.ndarray, np.ndarray]:
+    """Per-channel (mean, std) over demos and frames, each (10,) float32 (std >= STD_FLOOR)."""
+    m = np.asarray(motions, np.float64).reshape(-1, motion_lib.DIM)
+    return m.mean(0).astype(np.float32), np.maximum(m.std(0), STD_FLOOR).astype(np.float32)
+
+
+def write_normalizer(run_dir: Path, stats) -> None:
+    """Record the stats; a run folder that already holds different ones is refused."""
+    mean, std = (np.asarray(s, np.float32) for s in stats)
+    f = Path(run_dir) / NORMALIZER_FILE
+    if f.exists():
+        old_mean, old_std = read_normalizer(run_dir)
+        if not (np.allclose(old_mean, mean, atol=1e-6) and np.allclose(old_std, std, atol=1e-6)):
+            raise CheckpointError(f"{f} holds other normalisation stats; use a new --out/--name or --restart")
+        return
+    f.write_text(json.dumps({"mean": mean.tolist(), "std": std.tolist(), "std_floor": STD_FLOOR,
+                             "channels": list(motion_lib.KEYS)}, indent=1))
+
+
+def read_normalizer(run_dir) -> tuple[np.ndarray, np.ndarray]:
+    f = Path(run_dir) / NORMALIZER_FILE
+    if not f.exists():
+        raise CheckpointError(f"{run_dir} has no {NORMALIZER_FILE}; train the run first")
+    d = json.loads(f.read_text())
+    return np.asarray(d["mean"], np.float32), np.asarray(d["std"], np.float32)
+
+
+def batch_stats(stats, batch_size: int) -> np.ndarray:
+    """The stats as a per-sample batch entry (B, 2, 10), so that a train step takes them as an
+    argument (sharded like the rest of the batch) instead of baking them into the program."""
+    return np.broadcast_to(np.stack([np.asarray(s, np.float32) for s in stats])[None],
+                           (batch_size, 2, motion_lib.DIM)).copy()
+
+
+def stats_from_batch(batch) -> tuple[jax.Array, jax.Array]:
+    """(mean, std) shaped (B, 1, 10), broadcasting against motions (B, 101, 10)."""
+    s = batch["norm"]
+    return s[:, 0:1, :], s[:, 1:2, :]
+
+
+def normalize(m: jax.Array, stats) -> jax.Array:
+    mean, std = stats
+    return (m - mean) / std
+
+
+def denormalize(x: jax.Array, stats) -> jax.Array:
+    mean, std = stats
+    return x * std + mean
+
+
+def real_uv(x: jax.Array, stats) -> jax.Array:
+    """The image-plane track (B, 101, 2) of a normalised motion: where to sample image features."""
+    return motion_lib.uv(denormalize(x, stats))
+
+
+# ------------------------------------------------------------------ training helpers
+
+def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: str, sections, image_size: int):
+    """Load the training set and write run.json (recording only ``sections`` + train).
+
+    Returns (task, run_dir, dataset, cfg_dict).
+    """
+    task = tasks.canonical_name(task)
+    run_dir = Path(run_dir)
+    ds = base.load_train_data(data_root, task, configs["train"], image_size)
+    cfg_dict = base.configs_to_dict(configs, sections)
+    spec = {"method": method, "task": task, "preset": preset, "configs": cfg_dict,
+            "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
+            "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
+    base.write_run(run_dir, spec)
+    return task, run_dir, ds, cfg_dict
+
+
+def per_key_mse(pred: jax.Array, target: jax.Array) -> tuple[jax.Array, dict]:
+    """Sum over the motion keys of each key's MSE (READ's and the released baselines' reduction)."""
+    per_key = {k: jnp.mean((pred[..., s] - target[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
+    return sum(per_key.values()), per_key
+
+
+def check_n_steps(n_steps, allow_zero: bool, method: str) -> int:
+    if isinstance(n_steps, (bool, np.bool_)) or not isinstance(n_steps, (int, np.integer)) or n_steps < 0:
+        raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+    if n_steps == 0 and not allow_zero:
+        raise ValueError(f"{method} samples from noise: it needs N >= 1 sampler steps (N = 0 means 'execute the "
+                         f"retrieved motion', which only retrieval-based methods have)")
+    return int(n_steps)
+
+
+# ------------------------------------------------------------------ models
+
+class RunModel:
+    """The planner-facing basics of a trained run: spec, configs, camera, image size."""
+
+    uses_retrieval = False
+
+    def __init__(self, run_dir):
+        from readjax.sim.camera import CameraParams
+
+        self.run_dir = Path(run_dir)
+        self.spec = base.read_run(self.run_dir)
+        self.configs = base.configs_from_dict(self.spec["configs"])
+        self.cfg_dict = self.spec["configs"]
+        self.camera = CameraParams.from_dict(self.spec["camera"])
+        self.image_size = int(self.spec["image_size"])
+        self.fingerprint = self.spec["dataset_fingerprint"]
+
+
+class DenoiserRunModel(RunModel):
+    """A run whose image encoder is a READ-style denoiser ``self.den`` with params ``self.den_params``
+    (``encode_image`` / ``image_tokens``): image encoding and SPE retrieval features."""
+
+    den = None
+    den_params = None
+
+    def _setup_encoder(self):
+        den = self.den
+        self._encode = jax.jit(lambda p, x: den.apply(p, x, method="encode_image"))
+
+    def encode(self, images: jax.Array) -> jax.Array:
+        return self._encode(self.den_params, images)
+
+    def database_tokens(self, images: np.ndarray, motions: np.ndarray) -> np.ndarray:
+        from readjax.methods.read import database_features
+
+        return database_features(self.den, self.den_params, images, motions)
+
+    def spe_distances(self, features, db_uv, db_tokens) -> np.ndarray:
+        return retrieval.spe_distances(self.den, self.den_params, features, db_uv, db_tokens)

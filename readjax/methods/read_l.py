@@ -1,0 +1,152 @@
+"""READ-L (METHOD.md section 10): forward AND reverse process in the autoencoder's latent space;
+the output is Dec(ẑ0). Two resumable stages: ``vae/`` (READ's autoencoder stage, identical, so a
+sweep can share it) and ``read_l/``.
+
+Training (autoencoder frozen, carried in the train state under stop_gradient): z0 = Enc(M),
+zR = Enc(M_R) with M_R drawn uniformly from the top-K ground-truth neighbours among the other
+demos, t ~ U(t_min, 1), z_t from the latent IR-SDE marginal (section 5); the
+:class:`~readjax.models.latent_denoiser.LatentDenoiser` reads the image features along Dec(z_t)'s
+uv and predicts ẑ0; loss = MSE(ẑ0, z0) over the latent dims.
+
+Inference: cold diffusion in latent space from zR (:func:`readjax.diffusion.taskspace.cold_diffusion`
+on latents): ẑ0 = LD(F, z, Dec(z).uv, t_k); z = zR + (ẑ0 - zR) a(t_{k+1}) + lam sqrt(1 - a^2) eps;
+return Dec(last ẑ0). N = 0 returns M_R. Retrieval is SPE on this run's own UNet features.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+from readjax import retrieval, tasks
+from readjax.config import SDEConfig
+from readjax.data import motion as motion_lib
+from readjax.diffusion import irsde, taskspace
+from readjax.methods import base, common
+from readjax.methods import read as read_lib
+from readjax.methods.augment import augment_rgb
+from readjax.models.kinematic_vae import make_autoencoder
+from readjax.models.latent_denoiser import LatentDenoiser
+from readjax.training import Stage
+
+METHOD = "read_l"
+SECTIONS = ("vae", "denoiser", "sde")
+STAGES = ("vae", "read_l")
+
+
+def build_modules(configs: dict, chain, camera):
+    ae = make_autoencoder(configs["vae"], chain=chain, camera=camera)
+    return ae, LatentDenoiser(configs["denoiser"], latent_dim=configs["vae"].latent_dim)
+
+
+def init_latent_denoiser(lden: LatentDenoiser, image_size: int, key):
+    k1, k2 = jax.random.split(key)
+    return lden.init({"params": k1, "dropout": k2}, jnp.zeros((1, image_size, image_size, 4)),
+                     jnp.zeros((1, lden.latent_dim)), jnp.zeros((1, motion_lib.FRAMES, 2)), jnp.zeros((1,)))
+
+
+def read_l_loss(ae, lden: LatentDenoiser, sde: SDEConfig, augment: bool):
+    """MSE(ẑ0, z0) over the latent dims. ``params`` = {"denoiser": trained, "ae": frozen}: the frozen
+    autoencoder rides in the train state under ``stop_gradient`` (zero gradients, so Adam leaves it
+    exactly unchanged) — an argument of the jitted step, not a constant baked into it."""
+
+    def loss_fn(params, batch, rng):
+        ae_params = jax.lax.stop_gradient(params["ae"])
+        k_t, k_n, k_aug, k_drop = jax.random.split(rng, 4)
+        image, m, m_r = batch["image"], batch["motion"], batch["retrieved"]
+        if augment:
+            image = augment_rgb(k_aug, image)
+        z0 = ae.apply(ae_params, m, method="code")
+        z_r = ae.apply(ae_params, m_r, method="code")
+        t = irsde.sample_time(k_t, (m.shape[0],), sde)
+        z_t = irsde.marginal_sample(k_n, z0, z_r, t, sde)
+        uv = motion_lib.uv(ae.apply(ae_params, z_t, method="decode"))
+        pred = lden.apply(params["denoiser"], image, z_t, uv, t, train=True, rngs={"dropout": k_drop})
+        mse = jnp.mean((pred - z0) ** 2)
+        return mse, {"latent_mse": mse}
+
+    return loss_fn
+
+
+def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
+          stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
+    """Train READ-L for a task: the autoencoder (as READ's), then the latent denoiser."""
+    image_size = configs["denoiser"].image_size
+    task, run_dir, ds, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS,
+                                                 image_size)
+    train_cfg = configs["train"]
+    env = tasks.make(task)
+    ae, lden = build_modules(configs, env.chain, ds.camera)
+    k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
+    vspec = read_lib.vae_spec(train_cfg)
+    ae_cfg = read_lib.vae_stage_config(cfg_dict)
+    if "vae" in stages:
+        read_lib.fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
+    if "read_l" in stages:
+        ae_params = base.stage_params(run_dir, "vae", vspec, read_lib.init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
+        spec = read_lib.denoiser_spec(train_cfg)
+        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
+
+        def batch(step):
+            idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
+            j = base.neighbour_choice(pairs, idx, spec.seed, step)
+            return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j]}
+
+        params = {"denoiser": init_latent_denoiser(lden, image_size, k_den), "ae": ae_params}
+        Stage(run_dir, "read_l", spec, cfg_dict, ds.fingerprint).fit(
+            params, read_l_loss(ae, lden, configs["sde"], train_cfg.augment), batch, progress=progress,
+            stop_at=stop_at)
+    return base.read_run(run_dir)
+
+
+@functools.partial(jax.jit, static_argnames=("ae", "lden", "n_steps", "sde", "t_end", "return_history"))
+def refine(ae, ae_params, lden: LatentDenoiser, lden_params, features, m_r, key, n_steps: int, sde: SDEConfig,
+           t_end: float = taskspace.DEFAULT_T_END, return_history: bool = False):
+    """READ-L's latent cold diffusion from Enc(M_R); returns Dec(last ẑ0) (and every step's decoded
+    ẑ0 with ``return_history``). N = 0 returns M_R."""
+    if n_steps == 0:
+        hist = jnp.zeros((0,) + m_r.shape, m_r.dtype)
+        return (m_r, hist) if return_history else m_r
+
+    def dec(z):
+        return ae.apply(ae_params, z, method="decode")
+
+    def x0_fn(z, t):
+        return lden.apply(lden_params, features, z, motion_lib.uv(dec(z)), t, method="denoise")
+
+    z_r = ae.apply(ae_params, m_r, method="code")
+    _, hist = taskspace.cold_diffusion(x0_fn, key, z_r, sde, n_steps, t_end, return_history=True)
+    if return_history:
+        return dec(hist[-1]), jax.vmap(dec)(hist)
+    return dec(hist[-1])
+
+
+class ReadLModel(common.DenoiserRunModel):
+    """A trained READ-L run."""
+
+    uses_retrieval = True
+
+    def __init__(self, run_dir):
+        super().__init__(run_dir)
+        env = tasks.make(self.spec["task"])
+        self.ae, self.den = build_modules(self.configs, env.chain, self.camera)
+        train_cfg = self.configs["train"]
+        k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
+        template = {"denoiser": init_latent_denoiser(self.den, self.image_size, k_den),
+                    "ae": read_lib.init_ae(self.ae, k_ae)}
+        # the read_l checkpoint holds the (frozen) autoencoder it was trained with
+        params = base.stage_params(self.run_dir, "read_l", read_lib.denoiser_spec(train_cfg), template,
+                                   self.cfg_dict, self.fingerprint)
+        self.den_params, self.ae_params = params["denoiser"], params["ae"]
+        self._setup_encoder()
+
+    def generate(self, features, m_r, key, n_steps: int = 100) -> jax.Array:
+        n = common.check_n_steps(n_steps, allow_zero=True, method=METHOD)
+        m_r = jnp.asarray(m_r)
+        if n == 0:
+            return m_r
+        return refine(self.ae, self.ae_params, self.den, self.den_params, features, m_r, key, n,
+                      self.configs["sde"])
