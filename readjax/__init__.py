@@ -11,3 +11,12 @@ _runtime.configure_gl()
 _runtime.configure_jax()
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    """``readjax.Planner`` without importing the models on ``import readjax``."""
+    if name == "Planner":
+        from readjax.planner import Planner
+
+        return Planner
+    raise AttributeError(f"module 'readjax' has no attribute {name!r}")

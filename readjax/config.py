@@ -80,6 +80,19 @@ class VAEConfig:
 class DenoiserConfig:
     """The READ denoiser (METHOD.md section 6): ConvNeXt UNet + transformer over 203 tokens.
 
+    ``normalize_motion``: the transformer embeds motions per-channel standardised and its delta
+    heads predict in those units (``motion_mean``/``motion_std``, 10 values each, measured on the
+    training set when training starts and recorded with the run; empty = raw units). Without it a
+    channel with a small spread in metres (z: a few cm of depth) is nearly invisible to the
+    embedding and is not learnt at the cpu preset's size (beyond the paper, see README).
+
+    ``input_skip``: each image token also gets the input RGB-D itself, bilinearly sampled at the
+    token's uv (depth converted to metres, standardised like z when motion stats exist). The UNet's
+    features live on a stride-4 grid behind LayerNorms, which blur and re-scale the depth of a
+    small object; the skip gives the transformer the exact depth under the motion (beyond the
+    paper, see README). The per-image cache then carries the input pixels (space-to-depth) after
+    the trunk features: ``cache_channels``.
+
     ``conv_dims``/``enc_depths`` are the four encoder stages, ``dec_depths`` the three decoder
     levels (deepest first is level 2; tuples are ordered from the shallowest level, like the
     encoder's). ``feature_channels`` is C of the full-resolution feature map; when it differs from
@@ -99,9 +112,22 @@ class DenoiserConfig:
     layers: int = 8
     heads: int = 4
     ffn: int = 1024
+    normalize_motion: bool = False
+    input_skip: bool = False
+    motion_mean: tuple[float, ...] = ()
+    motion_std: tuple[float, ...] = ()
+
+    @property
+    def cache_channels(self) -> int:
+        """Channels of the per-image cache (``Denoiser.encode_image``)."""
+        return self.conv_dims[0] + (16 * self.in_channels if self.input_skip else 0)
 
     def __post_init__(self):
         _positive(self, "image_size", "in_channels", "feature_channels", "d_model", "layers", "heads", "ffn")
+        if len(self.motion_mean) != len(self.motion_std) or len(self.motion_std) not in (0, 10):
+            raise ValueError("DenoiserConfig.motion_mean and motion_std must both be empty or hold 10 values")
+        if any(not s > 0 for s in self.motion_std):
+            raise ValueError(f"DenoiserConfig.motion_std must be > 0, got {self.motion_std}")
         if len(self.conv_dims) != 4 or len(self.enc_depths) != 4 or len(self.dec_depths) != 3:
             raise ValueError("DenoiserConfig needs 4 conv_dims, 4 enc_depths and 3 dec_depths, got "
                              f"{self.conv_dims}, {self.enc_depths}, {self.dec_depths}")

@@ -9,6 +9,8 @@ import jax
 import numpy as np
 import pytest
 
+import readjax
+
 from experiments import _cli
 from experiments import evaluate as evaluate_cli
 from experiments import train as train_cli
@@ -54,7 +56,8 @@ def test_plan_and_execute(run, capsys):
 
 def test_planner_api_and_bad_input(run):
     data, run_dir = run
-    planner = Planner.load(run_dir)
+    assert readjax.Planner is Planner  # the public name
+    planner = readjax.Planner.load(run_dir)
     test = store.load_dataset(data / "reach_target" / "test")
     plan = planner.plan(test.rgbd[:2], jax.random.key(0), N=2)
     assert plan.motion.shape == (2, 101, 10) and plan.joints.shape == (2, 101, 7)

@@ -3,6 +3,7 @@ sections 4-6), in two resumable stages of one run folder (``vae/``, ``read/``)."
 
 from __future__ import annotations
 
+import dataclasses
 from functools import partial
 from pathlib import Path
 
@@ -82,6 +83,20 @@ def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict):
     return loss_fn
 
 
+def with_motion_stats(configs: dict, motions) -> dict:
+    """Fill the denoiser's per-channel motion statistics from the training set when
+    ``denoiser.normalize_motion`` asks for them (a deterministic function of the data, so a resumed
+    or shared run computes the same values)."""
+    den = configs["denoiser"]
+    if not den.normalize_motion or den.motion_std:
+        return configs
+    from readjax.methods.common import motion_stats
+
+    mean, std = motion_stats(motions)
+    return dict(configs, denoiser=dataclasses.replace(den, motion_mean=tuple(round(float(v), 6) for v in mean),
+                                                      motion_std=tuple(round(float(v), 6) for v in std)))
+
+
 def fit_autoencoder(run_dir: Path, ds, ae, key, train_cfg, cfg_dict: dict, progress: bool, stop_at) -> None:
     """The ``vae/`` stage (shared by READ and READ-L, and by runs differing only in K, L, T)."""
     vspec = vae_spec(train_cfg)
@@ -102,6 +117,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     train_cfg = configs["train"]
     image_size = configs["denoiser"].image_size
     ds = base.load_train_data(data_root, task, train_cfg, image_size)
+    configs = with_motion_stats(configs, ds.motion)
     env = tasks.make(task)
     ae, den = build_modules(configs, env.chain, ds.camera)
     cfg_dict = base.configs_to_dict(configs)

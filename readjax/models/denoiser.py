@@ -31,7 +31,8 @@ import flax.linen as nn
 
 from readjax.config import DenoiserConfig
 from readjax.data import motion as mo
-from readjax.models.convnext_unet import ConvNeXtUNet, bilinear_axis
+from readjax.models.convnext_unet import HEAD_STRIDE, ConvNeXtUNet, bilinear_axis
+from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR
 from readjax.models.vae import (KEY_DIMS, MLP, EncoderLayer, check_motion_shape, embed_mlp,
                                 sinusoidal_positions)
 
@@ -110,6 +111,7 @@ class Denoiser(nn.Module):
         self.motion_embed = embed_mlp(d)
         self.time_embed = embed_mlp(d)
         self.image_proj = nn.Dense(d) if c.feature_channels != d else None
+        self.input_embed = embed_mlp(d) if c.input_skip else None
         self.cond_embed = embed_mlp(d) if self.use_cond else None
         self.layers = [EncoderLayer(d, c.heads, c.ffn) for _ in range(c.layers)]
         self.heads = {k: MLP((d // 2, d // 2, dim)) for k, dim in KEY_DIMS.items()}
@@ -118,12 +120,33 @@ class Denoiser(nn.Module):
         return self.denoise(self.encode_image(image, train), motion_t, t, cond, cond_keep, uv)
 
     def encode_image(self, image, train: bool = False):
-        """The per-image feature cache (computed once per image, reused at every step)."""
-        return self.unet.trunk(image, train)
+        """The per-image feature cache (computed once per image, reused at every step): the UNet
+        trunk's output, followed by the input pixels (space-to-depth) with ``input_skip``."""
+        trunk = self.unet.trunk(image, train)
+        if not self.cfg.input_skip:
+            return trunk
+        b, h, w, k = image.shape
+        s = HEAD_STRIDE
+        pixels = image.reshape(b, h // s, s, w // s, s, k).transpose(0, 1, 3, 2, 4, 5)
+        return jnp.concatenate([trunk, pixels.reshape(b, h // s, w // s, s * s * k).astype(trunk.dtype)], -1)
 
     def image_tokens(self, features, uv):
         """Samples (B, T, C) of the full-resolution feature map at uv (B, T, 2)."""
-        return self.unet.head_at(features, uv)
+        return self.unet.head_at(features[..., : self.cfg.conv_dims[0]], uv)
+
+    def input_at(self, features, uv):
+        """The input RGB-D (B, T, in_channels) bilinearly sampled at uv, from an ``input_skip``
+        cache; depth in metres, standardised like the motion's z when motion stats exist."""
+        c = self.cfg
+        b, hs, ws, _ = features.shape
+        s, k = HEAD_STRIDE, c.in_channels
+        pix = features[..., c.conv_dims[0]:].reshape(b, hs, ws, s, s, k).transpose(0, 1, 3, 2, 4, 5)
+        x = sample_features(pix.reshape(b, hs * s, ws * s, k), uv)
+        depth = DEPTH_NEAR + (DEPTH_FAR - DEPTH_NEAR) * x[..., 3:4]
+        if c.motion_std:
+            z = mo.KEYS["z"].start
+            depth = (depth - c.motion_mean[z]) / c.motion_std[z]
+        return jnp.concatenate([x[..., :3] - 0.5, depth, x[..., 4:]], axis=-1)
 
     def feature_map(self, image, train: bool = False):
         """The full-resolution C-channel feature map (B, H, W, C)."""
@@ -134,15 +157,20 @@ class Denoiser(nn.Module):
         d = c.d_model
         check_motion_shape(motion_t, "motion_t")
         b = motion_t.shape[0]
-        if features.ndim != 4 or features.shape[0] != b or features.shape[-1] != c.conv_dims[0]:
+        if features.ndim != 4 or features.shape[0] != b or features.shape[-1] != c.cache_channels:
             raise ValueError(f"features (from encode_image) must have shape (B={b}, H/4, W/4, "
-                             f"{c.conv_dims[0]}), got {features.shape}")
+                             f"{c.cache_channels}), got {features.shape}")
         t = jnp.asarray(t, jnp.float32)
         if t.ndim > 1 or (t.ndim == 1 and t.shape[0] != b):
             raise ValueError(f"t must be a scalar or have shape ({b},), got {t.shape}")
         t = jnp.broadcast_to(t, (b,))
 
-        motion_tok = self.motion_embed(motion_t)
+        if c.motion_std:  # per-channel standardised embedding and delta (DenoiserConfig)
+            mean = jnp.asarray(c.motion_mean, jnp.float32)
+            std = jnp.asarray(c.motion_std, jnp.float32)
+        else:
+            mean, std = 0.0, 1.0
+        motion_tok = self.motion_embed((motion_t - mean) / std)
         time_tok = self.time_embed(time_features(t, d))[:, None, :]
         seq = jnp.concatenate([motion_tok, time_tok], axis=1) + sinusoidal_positions(mo.FRAMES + 1, d)
         if uv is None:
@@ -152,6 +180,8 @@ class Denoiser(nn.Module):
         img = self.image_tokens(features, uv)
         if self.image_proj is not None:
             img = self.image_proj(img)
+        if c.input_skip:
+            img = img + self.input_embed(self.input_at(features, uv))
         tokens = [seq, img + sinusoidal_positions(mo.FRAMES, d)]
 
         mask = None
@@ -162,7 +192,7 @@ class Denoiser(nn.Module):
             check_motion_shape(cond, "cond")
             if cond.shape[0] != b:
                 raise ValueError(f"cond must have batch size {b}, got {cond.shape[0]}")
-            tokens.append(self.cond_embed(cond) + sinusoidal_positions(mo.FRAMES, d))
+            tokens.append(self.cond_embed((cond - mean) / std) + sinusoidal_positions(mo.FRAMES, d))
             if cond_keep is not None:
                 cond_keep = jnp.asarray(cond_keep, bool)
                 if cond_keep.shape != (b,):
@@ -179,4 +209,4 @@ class Denoiser(nn.Module):
             x = layer(x, mask)
         h = x[:, : mo.FRAMES]
         out = mo.join_keys({k: self.heads[k](h) for k in mo.KEYS})
-        return motion_t + out if self.output == "delta" else out
+        return motion_t + out * std if self.output == "delta" else out

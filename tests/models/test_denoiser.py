@@ -105,6 +105,29 @@ def test_delta_and_eps_outputs_share_the_network(den, inputs):
         jax.eval_shape(lambda f: bad.apply(params, f, motion, t, method="denoise"), feats)
 
 
+def test_motion_normalisation_is_a_change_of_units(den, inputs):
+    """With motion stats the network sees (M - mean) / std and its delta is scaled by std: the same
+    parameters give mean + std * (the raw-unit network on the standardised motion, read at the real uv)."""
+    import dataclasses
+
+    from readjax.data import motion as mo
+
+    model, params, fn = den
+    image, motion, t = inputs
+    mean = np.linspace(-0.5, 1.0, 10).astype(np.float32)
+    std = np.linspace(0.02, 0.5, 10).astype(np.float32)
+    norm_model = Denoiser(dataclasses.replace(TINY_DENOISER, motion_mean=tuple(map(float, mean)),
+                                              motion_std=tuple(map(float, std))))
+    feats = fn["encode_image"](params, image)
+    out = jitted(norm_model, "denoise")(params, feats, motion, t)
+    x = (motion - mean) / std
+    ref = jax.jit(lambda p, f, m, tt, uv: model.apply(p, f, m, tt, uv=uv, method="denoise"))(
+        params, feats, x, t, mo.uv(motion))
+    np.testing.assert_allclose(out, mean + std * ref, atol=1e-5)
+    with pytest.raises(ValueError, match="motion_std"):
+        dataclasses.replace(TINY_DENOISER, motion_mean=(0.0,) * 10, motion_std=(1.0,) * 9)
+
+
 def test_conditioning_tokens(inputs):
     image, motion, t = inputs
     cond = motion[::-1]
@@ -146,3 +169,34 @@ def test_input_checks(den, inputs):
         shape_of(feats, motion, jnp.zeros(3))
     with pytest.raises(ValueError, match="use_cond"):
         shape_of(feats, motion, t, cond=motion)
+
+
+def test_input_skip_reads_the_exact_pixel_under_uv(inputs):
+    """With input_skip the cache carries the input pixels: the token at a pixel centre sees that
+    pixel's RGB (centred) and its depth in metres (standardised like z when motion stats exist)."""
+    import dataclasses
+
+    from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR
+
+    image, motion, t = inputs
+    cfg = dataclasses.replace(TINY_DENOISER, input_skip=True)
+    model = Denoiser(cfg)
+    params = jit_init(model, {"params": key(4), "dropout": key(5)}, image, motion, t)
+    feats = jitted(model, "encode_image")(params, image)
+    assert feats.shape == (B, 8, 8, cfg.cache_channels) and cfg.cache_channels == TINY_DENOISER.conv_dims[0] + 64
+    rows, cols = np.array([[3, 17], [30, 0]]), np.array([[5, 22], [9, 31]])
+    uv = jnp.stack([(2 * cols + 1) / 32 - 1, (2 * rows + 1) / 32 - 1], -1).astype(jnp.float32)  # (B, 2, 2)
+    got = jax.jit(lambda p, f, u: model.apply(p, f, u, method="input_at"))(params, feats, uv)
+    px = np.asarray(image)[np.arange(B)[:, None], rows, cols]  # (B, 2, 4)
+    np.testing.assert_allclose(got[..., :3], px[..., :3] - 0.5, atol=1e-6)
+    np.testing.assert_allclose(got[..., 3], DEPTH_NEAR + (DEPTH_FAR - DEPTH_NEAR) * px[..., 3], atol=1e-5)
+    stats = dataclasses.replace(cfg, motion_mean=(0.0, 0.0, 1.2) + (0.0,) * 7, motion_std=(1.0, 1.0, 0.1) + (1.0,) * 7)
+    got_n = jax.jit(lambda p, f, u: Denoiser(stats).apply(p, f, u, method="input_at"))(params, feats, uv)
+    np.testing.assert_allclose(got_n[..., 3], (got[..., 3] - 1.2) / 0.1, rtol=1e-5, atol=1e-5)
+    # the UNet tokens (what SPE retrieval compares) ignore the skip; the denoiser uses it
+    np.testing.assert_allclose(jax.jit(lambda p, f, u: model.apply(p, f, u, method="image_tokens"))(params, feats, uv),
+                               jax.jit(lambda p, f, u: model.apply(p, f[..., :16], u, method="image_tokens"))(
+                                   params, feats, uv), atol=0)
+    out = jitted(model, "denoise")(params, feats, motion, t)
+    brighter = feats.at[..., TINY_DENOISER.conv_dims[0]:].add(0.1)
+    assert out.shape == motion.shape and not np.allclose(out, jitted(model, "denoise")(params, brighter, motion, t))
