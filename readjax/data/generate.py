@@ -9,6 +9,7 @@ function of (task, split, episodes) and resuming an interrupted run reproduces i
 from __future__ import annotations
 
 import functools
+import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -190,13 +191,22 @@ def generate(cfg: GenerateConfig, progress: bool = True, stop_after_batches: int
         "episodes_attempted": attempted_n,
         "episodes_failed": failed_n,
         "expert_success_rate": kept / max(attempted_n, 1),
-        "seconds": round(time.time() - start, 2),
+        # summed over the invocations that built the split (a resumed or no-op run adds its own)
+        "seconds": round(_previous_seconds(path) + time.time() - start, 2),
         "physics_steps_per_episode": env.episode_steps * env.substeps,
         "versions": provenance.versions(),
         "machine": provenance.machine(),
     }
     store.write_summary(path, summary)
     return summary
+
+
+def _previous_seconds(path: Path) -> float:
+    f = Path(path) / "summary.json"
+    try:
+        return float(json.loads(f.read_text()).get("seconds", 0.0)) if f.exists() else 0.0
+    except (ValueError, OSError):
+        return 0.0
 
 
 def _progress_bar(enabled: bool, cfg: GenerateConfig, initial: int):

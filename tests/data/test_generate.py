@@ -44,6 +44,11 @@ def test_same_seeds_same_bits_and_resume(tmp_path):
     np.testing.assert_array_equal(da.joints, db.joints)
     assert not list((b / "reach_target" / "train").glob("*.tmp"))
 
+    # a no-op re-run keeps the summary (its wall time is summed, not reset)
+    before = json.loads((a / "reach_target" / "train" / "summary.json").read_text())["seconds"]
+    again = _gen(a, 6)
+    assert again["episodes_kept"] == 6 and again["seconds"] >= before > 0
+
     # asking for more extends the dataset with new seeds only
     _gen(b, 9)
     dc = store.load_dataset(b / "reach_target" / "train")
