@@ -26,6 +26,38 @@ from flax import struct
 from readjax import provenance, sharding
 
 
+def _field_default(section: str, name: str):
+    """The dataclass default of a config field (``missing`` if unknown)."""
+    import dataclasses
+
+    from readjax import config as cfg_lib
+    from readjax.methods.base import TrainConfig
+
+    cls = TrainConfig if section == "train" else cfg_lib.SECTIONS.get(section)
+    fields = {f.name: f for f in dataclasses.fields(cls)} if cls is not None else {}
+    if name not in fields or fields[name].default is dataclasses.MISSING:
+        return _MISSING
+    value = fields[name].default
+    return list(value) if isinstance(value, tuple) else value
+
+
+_MISSING = object()
+
+
+def with_new_defaults(old: dict, new: dict) -> dict:
+    """A stage recorded by an older readjax lacks config fields added since; such a field counts as
+    unchanged when the new config holds its default (new fields default to the old behaviour)."""
+    out = {}
+    for section, values in old.items():
+        if isinstance(values, dict) and isinstance(new.get(section), dict):
+            values = dict(values)
+            for k, v in new[section].items():
+                if k not in values and _field_default(section, k) == v:
+                    values[k] = v
+        out[section] = values
+    return out
+
+
 class CheckpointError(RuntimeError):
     """A checkpoint is missing, corrupted, or belongs to another config/dataset."""
 
@@ -102,9 +134,10 @@ class Stage:
                 raise CheckpointError(
                     f"{self.dir} was trained on dataset {old.get('dataset_fingerprint')}, not "
                     f"{self.fingerprint}; use a new --out (or --restart to overwrite)")
-            if old.get("config") != self.config:
-                diff = sorted(k for k in set(old.get("config", {})) | set(self.config)
-                              if old.get("config", {}).get(k) != self.config.get(k))
+            old_config = with_new_defaults(old.get("config", {}), self.config)
+            if old_config != self.config:
+                diff = sorted(k for k in set(old_config) | set(self.config)
+                              if old_config.get(k) != self.config.get(k))
                 raise CheckpointError(f"{self.dir} was trained with another config (differs in {diff}); "
                                       f"use a new --out (or --restart to overwrite)")
         else:

@@ -72,3 +72,14 @@ def test_refuses_other_dataset_or_config_and_corruption(tmp_path):
             f.write_bytes(b"\0garbage")
     with pytest.raises(CheckpointError, match="cannot be restored"):
         stage.fit(params0(), loss_fn, sample, progress=False)
+
+
+def test_stage_from_an_older_readjax_accepts_new_fields_at_their_defaults(tmp_path):
+    """A field added to a config section since a stage was recorded counts as unchanged at its
+    default (new fields default to the old behaviour), and as a change otherwise."""
+    old = {"denoiser": {"d_model": 64}, "train": {"steps": 5}}
+    Stage(tmp_path, "toy", SPEC, old, "fp").fit(params0(), loss_fn, sample, progress=False, stop_at=5)
+    new = {"denoiser": {"d_model": 64, "input_skip": False, "motion_std": []}, "train": {"steps": 5, "K": 3}}
+    Stage(tmp_path, "toy", SPEC, new, "fp")  # defaults: accepted
+    with pytest.raises(CheckpointError, match=r"differs in \['denoiser'\]"):
+        Stage(tmp_path, "toy", SPEC, {**new, "denoiser": {**new["denoiser"], "input_skip": True}}, "fp")

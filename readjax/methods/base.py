@@ -15,7 +15,8 @@ import numpy as np
 from readjax import config as cfg_lib
 from readjax import provenance
 from readjax.data import store
-from readjax.training import CheckpointError, Stage, StageSpec, TrainState, batch_indices, make_optimizer
+from readjax.training import (CheckpointError, Stage, StageSpec, TrainState, batch_indices, make_optimizer,
+                              with_new_defaults)
 
 
 @dataclass(frozen=True)
@@ -127,6 +128,7 @@ def write_run(run_dir: Path, spec: dict) -> None:
     spec = json.loads(json.dumps(spec))  # as it will read back (tuples -> lists)
     if f.exists():
         old = read_run(run_dir)
+        old["configs"] = with_new_defaults(old.get("configs", {}), spec.get("configs", {}))
         for key in ("method", "task", "configs", "dataset_fingerprint"):
             if old.get(key) != spec.get(key):
                 raise CheckpointError(f"{run_dir} holds a run with another {key}; use a new --out/--name "
