@@ -203,8 +203,8 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "success_rate": rate, "table": success_table({planner.task: rate}),
         "episodes": len(ds), "seeds": ds.seeds.tolist(), "success": res["success"].astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
-        "retrieval_error_m": float(np.mean(np.linalg.norm(plan["retrieved"][..., :3] - ds.motion[..., :3],
-                                                          axis=-1))),
+        # mean world-frame distance between the retrieved and the ground-truth end-effector paths
+        "retrieval_error_m": _path_distance(planner.camera, plan["retrieved"], ds.motion),
         "eval_config": {**vars(cfg), "N": n_steps}, "configs": planner.spec.get("configs"),
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),
@@ -237,3 +237,10 @@ class _AttrTree(dict):
 
 jax.tree_util.register_pytree_node(
     _AttrTree, lambda d: (list(d.values()), list(d.keys())), lambda keys, vals: _AttrTree(zip(keys, vals)))
+
+
+def _path_distance(camera, a: np.ndarray, b: np.ndarray) -> float:
+    """Mean distance (m) between the end-effector positions of two motion batches (B, 101, 10)."""
+    pa = np.asarray(motion_lib.decode(camera, jnp.asarray(a))[0])
+    pb = np.asarray(motion_lib.decode(camera, jnp.asarray(b))[0])
+    return float(np.mean(np.linalg.norm(pa - pb, axis=-1)))
