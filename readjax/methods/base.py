@@ -171,6 +171,19 @@ def sample_indices(n: int, batch: int, seed: int, step: int) -> np.ndarray:
     return batch_indices(n, batch, seed, step)
 
 
+def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, **extra):
+    """The batch function of a retrieval-conditioned stage: images and motions of sampled demos and,
+    for each, one of its K ground-truth neighbours (``retrieved``); pure in the step (exact resume).
+    ``extra`` entries are added to every batch unchanged."""
+
+    def batch(step):
+        idx = sample_indices(len(ds), spec.batch_size, spec.seed, step)
+        j = neighbour_choice(pairs, idx, spec.seed, step)
+        return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j], **extra}
+
+    return batch
+
+
 def neighbour_choice(pairs: np.ndarray, idx: np.ndarray, seed: int, step: int) -> np.ndarray:
     """For each sampled demo, one of its K neighbours uniformly (pure in (seed, step))."""
     col = np.random.default_rng([seed, step, 1]).integers(0, pairs.shape[1], size=len(idx))

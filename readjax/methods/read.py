@@ -135,12 +135,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         ae_params = base.stage_params(run_dir, "vae", vspec, init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
         dspec = denoiser_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
-
-        def read_batch(step):
-            idx = base.sample_indices(len(ds), dspec.batch_size, dspec.seed, step)
-            j = base.neighbour_choice(pairs, idx, dspec.seed, step)
-            return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j]}
-
+        read_batch = base.paired_batch(ds, dspec, pairs)
         loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights)
         Stage(run_dir, "read", dspec, cfg_dict, ds.fingerprint).fit(
             init_denoiser(den, image_size, k_den), loss, read_batch, progress=progress, stop_at=stop_at)

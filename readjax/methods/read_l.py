@@ -89,12 +89,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         ae_params = base.stage_params(run_dir, "vae", vspec, read_lib.init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
         spec = read_lib.denoiser_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
-
-        def batch(step):
-            idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
-            j = base.neighbour_choice(pairs, idx, spec.seed, step)
-            return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j]}
-
+        batch = base.paired_batch(ds, spec, pairs)
         params = {"denoiser": init_latent_denoiser(lden, image_size, k_den), "ae": ae_params}
         Stage(run_dir, "read_l", spec, cfg_dict, ds.fingerprint).fit(
             params, read_l_loss(ae, lden, configs["sde"], train_cfg.augment), batch, progress=progress,

@@ -85,13 +85,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     if "read_o" in stages:
         spec = denoiser_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
-        norm = common.batch_stats(stats, spec.batch_size)
-
-        def batch(step):
-            idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
-            j = base.neighbour_choice(pairs, idx, spec.seed, step)
-            return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j], "norm": norm}
-
+        batch = base.paired_batch(ds, spec, pairs, norm=common.batch_stats(stats, spec.batch_size))
         Stage(run_dir, "read_o", spec, cfg_dict, ds.fingerprint).fit(
             init_denoiser(den, image_size, jax.random.key(train_cfg.seed + 1)),
             read_o_loss(den, configs["sde"], train_cfg.augment), batch, progress=progress, stop_at=stop_at)
