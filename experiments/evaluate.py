@@ -41,9 +41,18 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def default_name(args) -> str:
-    n = 0 if args.no_refine else args.N
-    parts = [args.retrieval if args.retrieval == "spe" else f"cheat{args.rank}", f"N{'default' if n is None else n}"]
+def default_name(args, uses_retrieval: bool = True, iterative: bool = True, default_n: int | None = None) -> str:
+    """Result name from the options that apply to the method: the retrieval (when the method
+    retrieves, or the oracle is asked for), N (when it samples iteratively; ``default_n`` when --N
+    is not given); ``direct`` for a one-pass method without retrieval."""
+    n = 0 if args.no_refine else (args.N if args.N is not None else default_n)
+    parts = []
+    if uses_retrieval or args.retrieval == "cheat":
+        parts.append(args.retrieval if args.retrieval == "spe" else f"cheat{args.rank}")
+    if iterative:
+        parts.append(f"N{'default' if n is None else n}")
+    if not parts:
+        parts.append("direct")
     if args.noise:
         parts.append(f"noise{args.noise:g}")
     if args.brightness != 1.0:
@@ -77,7 +86,8 @@ def main(argv=None) -> None:
                                 retrieval=args.retrieval, rank=args.rank, batch_size=args.batch_size,
                                 seed=args.seed, videos=args.videos, image_noise=args.noise,
                                 brightness=args.brightness)
-    name = args.name or default_name(args)
+    model = planner.model
+    name = args.name or default_name(args, model.uses_retrieval, getattr(model, "iterative", True), planner.n_steps)
     result = evaluation.evaluate(planner, test_ds, cfg, out_dir=Path(args.run) / "eval", name=name,
                                  progress=not args.quiet)
     label = f"{result['method']} ({name})"

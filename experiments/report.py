@@ -1,8 +1,12 @@
 """Collect every evaluation under a runs folder into the paper's tables (methods x tasks,
 Avg12/Avg16 where present), a bar chart PNG, sweep tables, software versions and seeds.
 
-example:
+Evaluations are grouped by protocol: the main methods x tasks table (with its bar chart), oracle
+retrieval (cheat<i>_N<N>: Tables 4, 5, 8) and perturbed test images (Table 9).
+
+examples:
   python -m experiments.report --runs runs/ --out docs/results.md
+  python -m experiments.report --runs runs/ --exclude 'read_try*' --out docs/results.md
 """
 
 from __future__ import annotations
@@ -18,6 +22,8 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--runs", default="runs", help="runs root to scan for */eval/*.json and sweep.json")
     p.add_argument("--out", default="docs/results.md", help="markdown output (the chart goes beside it)")
+    p.add_argument("--exclude", nargs="*", default=[], metavar="PATTERN",
+                   help="leave out runs whose folder name matches a glob pattern (e.g. exploratory runs)")
     return p
 
 
@@ -25,7 +31,7 @@ def main(argv=None) -> None:
     args = parser().parse_args(argv)
     from readjax.report import write_report
 
-    text = write_report(args.runs, args.out)
+    text = write_report(args.runs, args.out, tuple(args.exclude))
     print(text.split("## Provenance")[0])
     print(f"wrote {args.out}")
 

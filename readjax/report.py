@@ -12,10 +12,32 @@ from readjax import tasks
 from readjax.evaluation import success_table
 
 
-def collect(runs_root: str | Path) -> list[dict]:
-    """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``."""
+PROTOCOLS = {  # protocol -> heading of its table
+    "main": "Methods x tasks (SPE retrieval where the method retrieves, clean test images)",
+    "oracle": "Oracle retrieval of the i-th nearest neighbour (Tables 4, 5 and 8: cheat<i>_N<N>)",
+    "perturbed": "Perturbed test images (Table 9)",
+}
+
+
+def protocol(r: dict) -> str:
+    """Which of the paper's experiment protocols an evaluation belongs to (see ``PROTOCOLS``)."""
+    cfg = r.get("eval_config", {})
+    if cfg.get("image_noise", 0.0) or cfg.get("brightness", 1.0) != 1.0:
+        return "perturbed"
+    if cfg.get("retrieval") == "cheat":
+        return "oracle"
+    return "main"
+
+
+def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
+    """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``, except those of runs
+    whose folder name matches one of the ``exclude`` glob patterns."""
+    import fnmatch
+
     out = []
     for f in sorted(Path(runs_root).rglob("eval/*.json")):
+        if any(fnmatch.fnmatch(f.parent.parent.name, pat) for pat in exclude):
+            continue
         try:
             r = json.loads(f.read_text())
         except json.JSONDecodeError:
@@ -33,6 +55,8 @@ def row_label(r: dict) -> str:
     cfg = r.get("eval_config", {})
     if cfg.get("N") == 0 and cfg.get("retrieval") == "spe":
         return f"{r['_run_name']}: retrieval only (N=0)"
+    if name == "direct":  # a one-pass method without retrieval (Deterministic)
+        return r["_run_name"]
     return f"{r['_run_name']}: {name}"
 
 
@@ -77,15 +101,17 @@ def sweeps(runs_root: str | Path) -> list[dict]:
     return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))]
 
 
-def write_report(runs_root: str | Path, out: str | Path) -> str:
+def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = ()) -> str:
     from readjax.sweep import format_table7
 
-    results = collect(runs_root)
+    results = collect(runs_root, exclude)
     if not results:
         raise FileNotFoundError(f"no evaluation results under {runs_root} (run experiments.evaluate first)")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    table = tables(results)
+    by_protocol = {p: [r for r in results if protocol(r) == p] for p in PROTOCOLS}
+    main = by_protocol["main"] or results
+    table = tables(main)
     chart = out.with_suffix(".png")
     bar_chart(table, chart)
     versions = results[0].get("versions", {})
@@ -95,8 +121,12 @@ def write_report(runs_root: str | Path, out: str | Path) -> str:
         f"Every evaluation found under `{runs_root}` ({len(results)} result files), success rate in % over "
         "the fixed test episodes. Avg12/Avg16 appear only when all their tasks are present; otherwise "
         "`Avg` is the mean over the tasks present.", "",
-        markdown_table(table), "", f"![success by task]({chart.name})", "",
     ]
+    for p, heading in PROTOCOLS.items():
+        if by_protocol[p]:
+            lines += [f"## {heading}", "", markdown_table(tables(by_protocol[p])), ""]
+            if p == "main" or not by_protocol["main"]:
+                lines += [f"![success by task]({chart.name})", ""]
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]

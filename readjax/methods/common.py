@@ -125,6 +125,7 @@ class RunModel:
     """The planner-facing basics of a trained run: spec, configs, camera, image size."""
 
     uses_retrieval = False
+    iterative = True  # generate() runs n_steps of a sampler (False: one forward pass, N is ignored)
 
     def __init__(self, run_dir):
         from readjax.sim.camera import CameraParams

@@ -63,6 +63,7 @@ class DeterministicModel(common.RunModel):
     """A trained Deterministic run. ``encode`` already predicts the motion; ``generate`` returns it."""
 
     uses_retrieval = False
+    iterative = False
 
     def __init__(self, run_dir):
         super().__init__(run_dir)

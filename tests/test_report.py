@@ -1,0 +1,43 @@
+"""experiments.report on hand-written evaluation files: protocol grouping, labels, exclusion."""
+
+import json
+
+from experiments import _cli
+from experiments import report as report_cli
+
+
+def _write(root, task, run, name, rate, **cfg):
+    d = root / task / run / "eval"
+    d.mkdir(parents=True, exist_ok=True)
+    eval_config = {"N": 10, "retrieval": "spe", "rank": 1, "image_noise": 0.0, "brightness": 1.0, **cfg}
+    (d / f"{name}.json").write_text(json.dumps({
+        "task": task, "name": name, "success_rate": rate, "seeds": [1, 2], "eval_config": eval_config,
+        "versions": {"jax": "x"}}))
+
+
+def test_report_groups_protocols_and_excludes(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    _write(runs, "reach_target", "read", "spe_N10", 0.5)
+    _write(runs, "reach_target", "read", "spe_N0", 0.25, N=0)
+    _write(runs, "push_button", "read", "spe_N10", 0.75)
+    _write(runs, "reach_target", "deterministic", "direct", 0.125, N=None)
+    _write(runs, "reach_target", "read", "cheat500_N100", 0.375, retrieval="cheat", rank=500, N=100)
+    _write(runs, "reach_target", "read", "spe_N10_noise0.1", 0.0625, image_noise=0.1)
+    _write(runs, "reach_target", "read_try", "spe_N10", 0.99)
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--exclude", "*_try"]) == 0
+    text = out.read_text()
+    main, oracle = text.split("## Oracle")[0], text.split("## Oracle")[1].split("## Perturbed")[0]
+    perturbed = text.split("## Perturbed")[1].split("## Provenance")[0]
+    assert "| read: spe_N10 | 50.0 | 75.0 | 62.5 |" in main
+    assert "| read: retrieval only (N=0) | 25.0 | – | 25.0 |" in main
+    assert "| deterministic | 12.5 | – | 12.5 |" in main
+    assert "cheat500" not in main and "| read: cheat500_N100 | 37.5 | 37.5 |" in oracle
+    assert "| read: spe_N10_noise0.1 | 6.2 | 6.2 |" in perturbed
+    assert "99.0" not in text and "read_try" not in text
+    assert out.with_suffix(".png").exists()
+
+
+def test_report_without_results_is_a_clear_error(tmp_path, capsys):
+    assert _cli.run(report_cli.main, ["--runs", str(tmp_path), "--out", str(tmp_path / "r.md")]) == 2
+    assert "no evaluation results" in capsys.readouterr().err
