@@ -29,13 +29,14 @@ def parser() -> argparse.ArgumentParser:
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| autoencoder | demos | pos err mm (mean / p95) | rot err rad (mean) | uv err px | "
+    head = ("| autoencoder | demos | pos err mm (mean / p95) | end pos err mm (median / p95) | rot err rad (mean) | uv err px | "
             "poses reachable | motions reachable | IK pos err mm (median / max) |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         rec, rc = r.get("reconstruction"), r["reachability"]
-        rec_cols = (f"{rec['pos_err_mm_mean']:.1f} / {rec['pos_err_mm_p95']:.1f} | {rec['rot_err_rad_mean']:.3f} | "
-                    f"{rec['uv_err_px_mean']:.2f}") if rec else "- | - | -"
+        rec_cols = (f"{rec['pos_err_mm_mean']:.1f} / {rec['pos_err_mm_p95']:.1f} | "
+                    f"{rec['end_pos_err_mm_median']:.1f} / {rec['end_pos_err_mm_p95']:.1f} | {rec['rot_err_rad_mean']:.3f} | "
+                    f"{rec['uv_err_px_mean']:.2f}") if rec else "- | - | - | -"
         lines.append(f"| {r['name']} | {r['episodes']} | {rec_cols} | {100 * rc['poses_reachable']:.1f}% | "
                      f"{100 * rc['motions_reachable']:.1f}% | {rc['ik_pos_err_mm_median']:.2f} / "
                      f"{rc['ik_pos_err_mm_max']:.1f} |")

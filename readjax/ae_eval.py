@@ -71,7 +71,9 @@ def reconstruction_errors(camera, recon: np.ndarray, target: np.ndarray, image_s
     pos_err = np.linalg.norm(np.asarray(p1 - p0), axis=-1)
     rot_err = np.asarray(geo.rotation_angle(r1, r0))
     uv_px = np.linalg.norm(np.asarray(motion_lib.uv(recon) - motion_lib.uv(target)), axis=-1) * image_size / 2
+    end = pos_err[:, -1]  # where the motion ends is what most success predicates test
     return {"pos_err_mm_mean": float(pos_err.mean() * 1e3), "pos_err_mm_p95": float(np.percentile(pos_err, 95) * 1e3),
+            "end_pos_err_mm_median": float(np.median(end) * 1e3), "end_pos_err_mm_p95": float(np.percentile(end, 95) * 1e3),
             "rot_err_rad_mean": float(rot_err.mean()), "rot_err_rad_p95": float(np.percentile(rot_err, 95)),
             "uv_err_px_mean": float(uv_px.mean()), "grip_abs_err_mean": float(np.abs(np.asarray(g1 - g0)).mean()),
             "motion_mse": float(np.mean((recon - target) ** 2))}

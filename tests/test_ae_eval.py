@@ -43,3 +43,4 @@ def test_reconstruction_errors_units():
     e = ae_eval.reconstruction_errors(cam, shifted, m, 64)
     np.testing.assert_allclose(e["uv_err_px_mean"], 1.0, rtol=1e-4)
     assert e["pos_err_mm_mean"] > 1.0
+    assert zero["end_pos_err_mm_median"] < 1e-3 and e["end_pos_err_mm_median"] > 1.0
