@@ -110,3 +110,18 @@ def test_sweep_resumes_and_reports(run, tmp_path):
     assert _cli.run(report_cli.main, ["--runs", str(tmp_path), "--out", str(out)]) == 0
     text = out.read_text()
     assert "| method | RT | Avg |" in text and "retrieval only (N=0)" in text and out.with_suffix(".png").exists()
+
+
+def test_ae_report_on_the_trained_run(run, tmp_path, capsys):
+    from experiments import ae_report as ae_report_cli
+
+    data, run_dir = run
+    out = tmp_path / "ae.json"
+    argv = ["--runs", str(run_dir), "--data", str(data), "--split", "test", "--episodes", "2", "--out", str(out)]
+    assert _cli.run(ae_report_cli.main, argv) == 0
+    rows = json.loads(out.read_text())["rows"]
+    assert [r["episodes"] for r in rows] == [2, 2]
+    rec = rows[1]["reconstruction"]
+    assert np.isfinite(rec["end_pos_err_mm_median"]) and rec["end_pos_err_mm_p95"] >= rec["end_pos_err_mm_median"]
+    assert "end pos err mm" in out.with_suffix(".md").read_text()
+    assert _cli.run(ae_report_cli.main, ["--runs", str(tmp_path / "nope"), "--data", str(data)]) == 2
