@@ -85,6 +85,19 @@ def bench_sim(args) -> dict:
     return results
 
 
+def _estimate_call_s(timed: list[tuple[int, float]], n: int) -> float:
+    """Predicted seconds of one plan call with N = n from the calls timed so far at this batch:
+    a fixed part (encoding, retrieval, IK) plus a per-step part, fitted through the last two
+    timings (one timing: all of it counts as the fixed part, a lower bound)."""
+    if not timed:
+        return 0.0
+    if len(timed) == 1:
+        return timed[0][1]
+    (n0, t0), (n1, t1) = timed[-2], timed[-1]
+    per_step = max((t1 - t0) / max(n1 - n0, 1), 0.0)
+    return t1 + per_step * (n - n1)
+
+
 def bench_planner(args) -> dict:
     """ms per plan (encode + SPE retrieval + N refinement steps + IK) with random parameters:
     latency does not depend on training. Cells predicted to exceed --max-seconds are skipped."""
@@ -120,11 +133,11 @@ def bench_planner(args) -> dict:
         planner = Planner(model, db)
         setup = time.perf_counter() - t0
         print(f"{preset}: planner set-up (database features for {n_db}) {setup:.1f}s", flush=True)
-        per_step = {}
+        timed: dict[int, list[tuple[int, float]]] = {}  # batch -> [(N, seconds per call)]
         for b in args.batch_sizes:
             images = rng.uniform(size=(b, size, size, 4)).astype(np.float32)
             for n in sorted(args.N):
-                est = per_step.get(b, 0) * n
+                est = _estimate_call_s(timed.get(b, []), n)
                 if est > args.max_seconds:
                     print(f"{preset} B={b:<3} N={n:<4} skipped (estimated {est:.0f}s > --max-seconds)", flush=True)
                     results["cells"].append({"preset": preset, "batch": b, "N": n, "skipped": True,
@@ -136,7 +149,7 @@ def bench_planner(args) -> dict:
                 first = time.perf_counter() - t0
                 times = _time(lambda: planner.plan(images, key, N=n), args.repeats)
                 t = statistics.median(times)
-                per_step[b] = max(per_step.get(b, 0), t / max(n, 1))
+                timed.setdefault(b, []).append((n, t))
                 cell = {"preset": preset, "batch": b, "N": n, "ms_per_call": round(1e3 * t, 1),
                         "ms_per_plan": round(1e3 * t / b, 2), "compile_s": round(first - t, 2),
                         "setup_s": round(setup, 2)}
