@@ -29,22 +29,34 @@ def protocol(r: dict) -> str:
     return "main"
 
 
+def run_label(run_dir: Path, runs_root: Path, task: str) -> str:
+    """A run's name in the tables: its path below ``runs_root`` without the task folder
+    (``read`` for ``runs/reach_target/read``; ``runs3/read`` or ``sweep/L0.1`` deeper down), so
+    the same run name for the same task in two places stays two rows."""
+    parts = [p for p in run_dir.relative_to(runs_root).parts if p != task]
+    return "/".join(parts) or run_dir.name
+
+
 def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
     """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``, except those of runs
-    whose folder name matches one of the ``exclude`` glob patterns."""
+    whose name (folder name, or the label of ``run_label``) matches one of the ``exclude`` glob
+    patterns."""
     import fnmatch
 
+    root = Path(runs_root)
     out = []
-    for f in sorted(Path(runs_root).rglob("eval/*.json")):
-        if any(fnmatch.fnmatch(f.parent.parent.name, pat) for pat in exclude):
-            continue
+    for f in sorted(root.rglob("eval/*.json")):
         try:
             r = json.loads(f.read_text())
         except json.JSONDecodeError:
             continue
         if "success_rate" not in r or "task" not in r:
             continue
-        r["_run_name"] = f.parent.parent.name
+        run_dir = f.parent.parent
+        label = run_label(run_dir, root, r["task"])
+        if any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in exclude):
+            continue
+        r["_run_name"] = label
         r["_file"] = str(f)
         out.append(r)
     return out

@@ -24,8 +24,10 @@ def test_report_groups_protocols_and_excludes(tmp_path, capsys):
     _write(runs, "reach_target", "read", "cheat500_N100", 0.375, retrieval="cheat", rank=500, N=100)
     _write(runs, "reach_target", "read", "spe_N10_noise0.1", 0.0625, image_noise=0.1)
     _write(runs, "reach_target", "read_try", "spe_N10", 0.99)
+    _write(runs / "older", "reach_target", "read", "spe_N10", 0.875)  # same run name, another place
+    _write(runs / "older", "reach_target", "read_x", "spe_N10", 0.97)
     out = tmp_path / "docs" / "results.md"
-    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--exclude", "*_try"]) == 0
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--exclude", "*_try", "older/read_x"]) == 0
     text = out.read_text()
     main, oracle = text.split("## Oracle")[0], text.split("## Oracle")[1].split("## Perturbed")[0]
     perturbed = text.split("## Perturbed")[1].split("## Provenance")[0]
@@ -34,7 +36,8 @@ def test_report_groups_protocols_and_excludes(tmp_path, capsys):
     assert "| deterministic | 12.5 | – | 12.5 |" in main
     assert "cheat500" not in main and "| read: cheat500_N100 | 37.5 | 37.5 |" in oracle
     assert "| read: spe_N10_noise0.1 | 6.2 | 6.2 |" in perturbed
-    assert "99.0" not in text and "read_try" not in text
+    assert "| older/read: spe_N10 | 87.5 | – | 87.5 |" in main
+    assert "99.0" not in text and "read_try" not in text and "97.0" not in text
     assert out.with_suffix(".png").exists()
 
 
