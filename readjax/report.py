@@ -52,6 +52,8 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
             continue
         if "success_rate" not in r or "task" not in r:
             continue
+        if str(r.get("name", "")).startswith("sweep_"):  # a sweep cell: shown in its sweep's table
+            continue
         run_dir = f.parent.parent
         label = run_label(run_dir, root, r["task"])
         if any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in exclude):
