@@ -52,13 +52,12 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
             continue
         if "success_rate" not in r or "task" not in r:
             continue
-        if str(r.get("name", "")).startswith("sweep_"):  # a sweep cell: shown in its sweep's table
-            continue
         run_dir = f.parent.parent
         label = run_label(run_dir, root, r["task"])
         if any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in exclude):
             continue
         r["_run_name"] = label
+        r["_sweep_cell"] = str(r.get("name", "")).startswith("sweep_")  # shown in its sweep's table only
         r["_file"] = str(f)
         out.append(r)
     return out
@@ -123,11 +122,11 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
         raise FileNotFoundError(f"no evaluation results under {runs_root} (run experiments.evaluate first)")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    by_protocol = {p: [r for r in results if protocol(r) == p] for p in PROTOCOLS}
-    main = by_protocol["main"] or results
-    table = tables(main)
+    listed = [r for r in results if not r["_sweep_cell"]]
+    by_protocol = {p: [r for r in listed if protocol(r) == p] for p in PROTOCOLS}
     chart = out.with_suffix(".png")
-    bar_chart(table, chart)
+    if listed:
+        bar_chart(tables(by_protocol["main"] or listed), chart)
     versions = results[0].get("versions", {})
     seeds = sorted({(r["task"], min(r["seeds"]), max(r["seeds"]), len(r["seeds"])) for r in results if r.get("seeds")})
     lines = [
@@ -136,11 +135,13 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
         "the fixed test episodes. Avg12/Avg16 appear only when all their tasks are present; otherwise "
         "`Avg` is the mean over the tasks present.", "",
     ]
+    chart_shown = False
     for p, heading in PROTOCOLS.items():
         if by_protocol[p]:
             lines += [f"## {heading}", "", markdown_table(tables(by_protocol[p])), ""]
-            if p == "main" or not by_protocol["main"]:
+            if not chart_shown:  # the chart shows the first table (the main one when there is one)
                 lines += [f"![success by task]({chart.name})", ""]
+                chart_shown = True
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]

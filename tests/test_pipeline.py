@@ -109,7 +109,9 @@ def test_sweep_resumes_and_reports(run, tmp_path):
     out = tmp_path / "results.md"
     assert _cli.run(report_cli.main, ["--runs", str(tmp_path), "--out", str(out)]) == 0
     text = out.read_text()
-    assert "| method | RT | Avg |" in text and "retrieval only (N=0)" in text and out.with_suffix(".png").exists()
+    # a root holding only a sweep: its cells appear in the sweep's Table-7 layout, not as method rows
+    assert "## Sweep: read on reach_target (2 episodes per cell)" in text and "| setting | N | K | L | T | RT |" in text
+    assert "| method |" not in text and str(sweep_dir / "L0.3" / "eval" / "sweep_N0.json") in text
 
 
 def test_ae_report_on_the_trained_run(run, tmp_path, capsys):

@@ -38,7 +38,7 @@ def test_report_groups_protocols_and_excludes(tmp_path, capsys):
     assert "| read: spe_N10_noise0.1 | 6.2 | 6.2 |" in perturbed
     assert "| older/read: spe_N10 | 87.5 | – | 87.5 |" in main
     assert "99.0" not in text and "read_try" not in text and "97.0" not in text
-    assert out.with_suffix(".png").exists()
+    assert out.with_suffix(".png").exists() and "![success by task](results.png)" in main
 
 
 def test_report_without_results_is_a_clear_error(tmp_path, capsys):
