@@ -87,7 +87,7 @@ def main(argv=None) -> None:
                                 seed=args.seed, videos=args.videos, image_noise=args.noise,
                                 brightness=args.brightness)
     model = planner.model
-    name = args.name or default_name(args, model.uses_retrieval, getattr(model, "iterative", True), planner.n_steps)
+    name = args.name or default_name(args, model.uses_retrieval, model.iterative, planner.n_steps)
     result = evaluation.evaluate(planner, test_ds, cfg, out_dir=Path(args.run) / "eval", name=name,
                                  progress=not args.quiet)
     label = f"{result['method']} ({name})"

@@ -23,7 +23,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--runs", default="runs", help="runs root to scan for */eval/*.json and sweep.json")
     p.add_argument("--out", default="docs/results.md", help="markdown output (the chart goes beside it)")
     p.add_argument("--exclude", nargs="*", default=[], metavar="PATTERN",
-                   help="leave out runs whose folder name matches a glob pattern (e.g. exploratory runs)")
+                   help="leave out runs whose folder name or table name (path below --runs without the task "
+                        "folder, e.g. runs3/read) matches a glob pattern")
     return p
 
 

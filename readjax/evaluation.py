@@ -205,7 +205,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         # mean world-frame distance between the retrieved and the ground-truth end-effector paths
         "retrieval_error_m": _path_distance(planner.camera, plan["retrieved"], ds.motion),
-        "eval_config": {**vars(cfg), "N": n_steps if getattr(planner.model, "iterative", True) else None}, "configs": planner.spec.get("configs"),
+        "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None}, "configs": planner.spec.get("configs"),
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),
     }

@@ -10,6 +10,7 @@ import numpy as np
 
 from readjax import tasks
 from readjax.evaluation import success_table
+from readjax.sweep import CELL_PREFIX
 
 
 PROTOCOLS = {  # protocol -> heading of its table
@@ -57,7 +58,7 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
         if any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in exclude):
             continue
         r["_run_name"] = label
-        r["_sweep_cell"] = str(r.get("name", "")).startswith("sweep_")  # shown in its sweep's table only
+        r["_sweep_cell"] = str(r.get("name", "")).startswith(CELL_PREFIX)  # shown in its sweep's table only
         r["_file"] = str(f)
         out.append(r)
     return out

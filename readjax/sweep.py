@@ -22,6 +22,7 @@ from readjax.methods import base
 TEST_TIME = ("N",)
 TRAIN_KEYS = {"K": "train.K", "L": "sde.lam", "T": "sde.theta1"}
 DEFAULTS = {"N": 100, "K": 3, "L": 0.5, "T": 2.0}  # the paper's setting A
+CELL_PREFIX = "sweep_"  # a cell's evaluation is RUN/eval/<CELL_PREFIX>N<n>.json (reports list it by sweep)
 
 
 def parse_grid(items) -> dict[str, list]:
@@ -98,7 +99,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
             shared_vae = shared_vae or run_dir / "vae"
         planner = None
         for n in n_values:
-            name = f"sweep_N{n}"
+            name = f"{CELL_PREFIX}N{n}"
             f = run_dir / "eval" / f"{name}.json"
             if f.exists():
                 result = json.loads(f.read_text())

@@ -17,7 +17,8 @@ def test_registry():
     for name in methods.names():
         mod = methods.module(name)
         cls = getattr(mod, methods.METHODS[name][1])
-        assert isinstance(cls.uses_retrieval, bool) and hasattr(mod, "train")
+        assert isinstance(cls.uses_retrieval, bool) and isinstance(cls.iterative, bool) and hasattr(mod, "train")
+        assert cls.iterative == (name != "deterministic")  # only Deterministic ignores N
         if hasattr(mod, "STAGES"):
             assert tuple(mod.STAGES) == methods.stages(name)
     assert not methods.module("vpsde").VPSDEModel.uses_retrieval
