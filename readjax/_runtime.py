@@ -22,9 +22,35 @@ import warnings
 _CPU_FLAG = "--xla_cpu_use_fusion_emitters=false"
 
 
+def fusion_flag_known(jaxlib_version: str | None) -> bool:
+    """Whether this jaxlib's XLA still has the fusion-emitter flag.
+
+    jaxlib 0.11 dropped it, and XLA aborts the process on an unknown flag in XLA_FLAGS (seen with
+    jaxlib 0.11.2, the version on the lent GPU machines), so the flag is only set for older ones.
+    """
+    if jaxlib_version is None:
+        return True
+    try:
+        major, minor = (int(p) for p in jaxlib_version.split(".")[:2])
+    except ValueError:
+        return True
+    return (major, minor) < (0, 11)
+
+
+def _installed_jaxlib() -> str | None:
+    from importlib import metadata
+
+    try:
+        return metadata.version("jaxlib")
+    except metadata.PackageNotFoundError:
+        return None
+
+
 def configure_xla_flags() -> None:
-    """Append the CPU fusion-emitter flag to XLA_FLAGS (idempotent)."""
+    """Append the CPU fusion-emitter flag to XLA_FLAGS (idempotent) where jaxlib knows it."""
     flags = os.environ.get("XLA_FLAGS", "")
+    if not fusion_flag_known(_installed_jaxlib()):
+        return
     if "xla_cpu_use_fusion_emitters" not in flags:
         os.environ["XLA_FLAGS"] = (flags + " " + _CPU_FLAG).strip()
     if "jax" in sys.modules and "xla_cpu_use_fusion_emitters" not in flags:
@@ -35,9 +61,24 @@ def configure_xla_flags() -> None:
         )
 
 
+def choose_gl(find_library) -> str:
+    """The MUJOCO_GL backend for headless rendering: EGL where libEGL exists, else OSMesa, else
+    glfw. Asking for EGL where libEGL is missing makes ``import mujoco`` itself fail (PyOpenGL
+    raises AttributeError, seen on the lent GPU machines), while glfw imports everywhere and only
+    a renderer created without a display fails, so simulation-only work still runs."""
+    if find_library("EGL"):
+        return "egl"
+    if find_library("OSMesa"):
+        return "osmesa"
+    return "glfw"
+
+
 def configure_gl() -> None:
     """Headless OpenGL for mujoco.Renderer (must be chosen before mujoco is imported)."""
-    os.environ.setdefault("MUJOCO_GL", "egl")
+    if "MUJOCO_GL" not in os.environ:
+        import ctypes.util
+
+        os.environ["MUJOCO_GL"] = choose_gl(ctypes.util.find_library)
     if os.environ["MUJOCO_GL"] in ("egl", "osmesa"):
         os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 

@@ -111,6 +111,41 @@ def bar_chart(table: dict[str, dict[str, float]], path: Path) -> None:
     plt.close(fig)
 
 
+def machine_of(r: dict) -> str:
+    m = r.get("machine") or {}
+    return f"{m.get('backend', '?')}: {m.get('devices', '?')}" if m else "not recorded"
+
+
+def stacks(results: list[dict]) -> tuple[dict[str, str], list[str], dict[tuple, list[dict]]]:
+    """The software every result shares, the packages whose versions differ between results, and
+    the results grouped by (machine, differing versions): a table may mix runs made on a GPU
+    machine's stack with runs made here, and the reader should see which is which."""
+    keys = list(dict.fromkeys(k for r in results for k in r.get("versions", {})))
+    differing = [k for k in keys if len({r.get("versions", {}).get(k) for r in results}) > 1]
+    common = {k: results[0].get("versions", {}).get(k) for k in keys if k not in differing}
+    groups: dict[tuple, list[dict]] = {}
+    for r in results:
+        key = (machine_of(r), *(str(r.get("versions", {}).get(k, "–")) for k in differing))
+        groups.setdefault(key, []).append(r)
+    return common, differing, groups
+
+
+def provenance_lines(results: list[dict]) -> list[str]:
+    common, differing, groups = stacks(results)
+    lines = ["## Provenance", "", "| package | version |", "|---|---|"]
+    lines += [f"| {k} | {v} |" for k, v in common.items()]
+    lines += ["", "Machines and differing software the results were evaluated with (the stack a run "
+              "was trained with is in its `run.json`):", "",
+              "| machine | " + " | ".join(differing + ["results"]) + " |", "|---" * (len(differing) + 2) + "|"]
+    for key, rs in groups.items():
+        by_row: dict[str, list[str]] = {}
+        for r in rs:
+            by_row.setdefault(row_label(r), []).append(tasks.code_of(r["task"]))
+        cell = "; ".join(f"{label} ({', '.join(codes)})" for label, codes in sorted(by_row.items()))
+        lines.append("| " + " | ".join(key) + f" | {cell} |")
+    return lines
+
+
 def sweeps(runs_root: str | Path) -> list[dict]:
     return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))]
 
@@ -128,7 +163,6 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     chart = out.with_suffix(".png")
     if listed:
         bar_chart(tables(by_protocol["main"] or listed), chart)
-    versions = results[0].get("versions", {})
     seeds = sorted({(r["task"], min(r["seeds"]), max(r["seeds"]), len(r["seeds"])) for r in results if r.get("seeds")})
     lines = [
         "# Results", "",
@@ -146,8 +180,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]
-    lines += ["## Provenance", "", "| package | version |", "|---|---|"]
-    lines += [f"| {k} | {v} |" for k, v in versions.items()]
+    lines += provenance_lines(results)
     lines += ["", "| task | test seeds | episodes |", "|---|---|---|"]
     lines += [f"| {t} | {a}..{b} | {n} |" for t, a, b, n in seeds]
     lines += ["", "Result files:", ""] + [f"- `{r['_file']}`" for r in results]

@@ -44,3 +44,20 @@ def test_report_groups_protocols_and_excludes(tmp_path, capsys):
 def test_report_without_results_is_a_clear_error(tmp_path, capsys):
     assert _cli.run(report_cli.main, ["--runs", str(tmp_path), "--out", str(tmp_path / "r.md")]) == 2
     assert "no evaluation results" in capsys.readouterr().err
+
+
+def test_provenance_separates_machines_and_differing_versions(tmp_path):
+    runs = tmp_path / "runs"
+    _write(runs, "reach_target", "read", "spe_N10", 0.5)
+    _write(runs, "push_button", "vpsde", "N100", 0.25)
+    f = runs / "push_button" / "vpsde" / "eval" / "N100.json"
+    r = json.loads(f.read_text())
+    r["versions"] = {"jax": "y"}
+    r["machine"] = {"backend": "gpu", "devices": "1 x NVIDIA H200"}
+    f.write_text(json.dumps(r))
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out)]) == 0
+    prov = out.read_text().split("## Provenance")[1]
+    assert "| machine | jax | results |" in prov
+    assert "| gpu: 1 x NVIDIA H200 | y | vpsde: N100 (PB) |" in prov
+    assert "| not recorded | x | read: spe_N10 (RT) |" in prov
