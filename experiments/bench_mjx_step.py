@@ -9,13 +9,25 @@ Cholesky are set up as readjax does.
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from pathlib import Path
 
-os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_use_fusion_emitters=false").strip()
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def _set_xla_flags() -> None:
+    """readjax's XLA flag, where this jaxlib knows it (loaded without importing the package, which
+    would import jax first)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("_readjax_runtime", ROOT / "readjax" / "_runtime.py")
+    runtime = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(runtime)
+    runtime.configure_xla_flags()
+
+
+_set_xla_flags()
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402

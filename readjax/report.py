@@ -100,8 +100,10 @@ def bar_chart(table: dict[str, dict[str, float]], path: Path) -> None:
     width = 0.8 / max(len(labels), 1)
     fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(cols) + 2), 3.8))
     x = np.arange(len(cols))
+    colors = plt.get_cmap("tab10" if len(labels) <= 10 else "tab20")  # one distinct colour per row
     for i, label in enumerate(labels):
-        ax.bar(x + i * width - 0.4 + width / 2, [table[label].get(c, 0.0) for c in cols], width, label=label)
+        ax.bar(x + i * width - 0.4 + width / 2, [table[label].get(c, 0.0) for c in cols], width, label=label,
+               color=colors(i % colors.N))
     ax.set_xticks(x, cols)
     ax.set_ylabel("success (%)")
     ax.set_ylim(0, 105)
