@@ -78,7 +78,14 @@ def tables(results: list[dict]) -> dict[str, dict[str, float]]:
     rows: dict[str, dict[str, float]] = {}
     for r in results:
         rows.setdefault(row_label(r), {})[r["task"]] = r["success_rate"]
-    return {label: success_table(rates) for label, rates in sorted(rows.items())}
+    return {label: success_table(rates) for label, rates in sorted(rows.items(), key=lambda kv: natural_key(kv[0]))}
+
+
+def natural_key(text: str) -> list:
+    """Sort key that orders numbers by value (cheat3 before cheat10, N10 before N100)."""
+    import re
+
+    return [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", text)]
 
 
 def markdown_table(table: dict[str, dict[str, float]]) -> str:

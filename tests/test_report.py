@@ -61,3 +61,11 @@ def test_provenance_separates_machines_and_differing_versions(tmp_path):
     assert "| machine | jax | results |" in prov
     assert "| gpu: 1 x NVIDIA H200 | y | vpsde: N100 (PB) |" in prov
     assert "| not recorded | x | read: spe_N10 (RT) |" in prov
+
+
+def test_rows_sort_numbers_by_value():
+    from readjax.report import natural_key
+
+    labels = ["read: cheat10_N0", "read: cheat1_N100", "read: cheat3_N0", "read: cheat1_N0", "read: spe_N10"]
+    assert sorted(labels, key=natural_key) == [
+        "read: cheat1_N0", "read: cheat1_N100", "read: cheat3_N0", "read: cheat10_N0", "read: spe_N10"]
