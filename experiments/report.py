@@ -7,6 +7,7 @@ retrieval (cheat<i>_N<N>: Tables 4, 5, 8) and perturbed test images (Table 9).
 examples:
   python -m experiments.report --runs runs/ --out docs/results.md
   python -m experiments.report --runs runs/ --exclude 'read_try*' --out docs/results.md
+  python -m experiments.report --runs runs/ --compare 'read: spe_N100'   # paired tests vs that row
 """
 
 from __future__ import annotations
@@ -25,6 +26,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--exclude", nargs="*", default=[], metavar="PATTERN",
                    help="leave out runs whose folder name or table name (path below --runs without the task "
                         "folder, e.g. runs3/read) matches a glob pattern")
+    p.add_argument("--compare", default=None, metavar="ROW",
+                   help="add a table of every row's difference to this row (a method label of the tables, "
+                        "e.g. 'read: spe_N100') on the same test episodes, with exact McNemar p-values")
     return p
 
 
@@ -32,7 +36,7 @@ def main(argv=None) -> None:
     args = parser().parse_args(argv)
     from readjax.report import write_report
 
-    text = write_report(args.runs, args.out, tuple(args.exclude))
+    text = write_report(args.runs, args.out, tuple(args.exclude), args.compare)
     print(text.split("## Provenance")[0])
     print(f"wrote {args.out}")
 

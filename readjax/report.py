@@ -81,11 +81,13 @@ def tables(results: list[dict]) -> dict[str, dict[str, float]]:
     return {label: success_table(rates) for label, rates in sorted(rows.items(), key=lambda kv: natural_key(kv[0]))}
 
 
-def natural_key(text: str) -> list:
-    """Sort key that orders numbers by value (cheat3 before cheat10, N10 before N100)."""
+def natural_key(text: str) -> tuple:
+    """Row order: by run (plain text order, so ``runs/...`` stays before ``runs1k/...``), then by
+    the evaluation name with numbers by value (cheat3 before cheat10, N10 before N100)."""
     import re
 
-    return [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", text)]
+    run, _, name = text.partition(":")
+    return run, [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", name)]
 
 
 def markdown_table(table: dict[str, dict[str, float]]) -> str:
@@ -155,11 +157,73 @@ def provenance_lines(results: list[dict]) -> list[str]:
     return lines
 
 
+def mcnemar_p(a, b) -> float:
+    """Exact two-sided McNemar p-value for two methods' successes on the same episodes: a binomial
+    test on the discordant episodes (one succeeds, the other fails). 1.0 when none are discordant."""
+    from math import comb
+
+    a, b = np.asarray(a, bool), np.asarray(b, bool)
+    if a.shape != b.shape:
+        raise ValueError(f"paired outcomes must have the same episodes, got {a.shape} and {b.shape}")
+    n10, n01 = int((a & ~b).sum()), int((~a & b).sum())
+    n = n10 + n01
+    if n == 0:
+        return 1.0
+    tail = sum(comb(n, k) for k in range(min(n10, n01) + 1)) / 2**n
+    return min(1.0, 2 * tail)
+
+
+def _by_seed(r: dict) -> dict[int, bool]:
+    return dict(zip(r.get("seeds", []), r.get("success", [])))
+
+
+def paired_comparison(results: list[dict], reference: str) -> dict[str, dict[str, str]]:
+    """Each row against the ``reference`` row (a label of the tables) on the episodes both ran:
+    the difference in success points and the exact McNemar p-value, per task. With 100 episodes a
+    difference of a few points is usually noise; the p-value says which are not."""
+    rows: dict[str, dict[str, dict]] = {}
+    for r in results:
+        rows.setdefault(row_label(r), {})[r["task"]] = r
+    if reference not in rows:
+        raise ValueError(f"--compare: no row {reference!r}; rows are: {', '.join(sorted(rows, key=natural_key))}")
+    ref = rows[reference]
+    out: dict[str, dict[str, str]] = {}
+    for label in sorted(rows, key=natural_key):
+        if label == reference:
+            continue
+        cells = {}
+        for task, r in rows[label].items():
+            if task not in ref:
+                continue
+            x, y = _by_seed(r), _by_seed(ref[task])
+            common = sorted(set(x) & set(y))
+            if not common:
+                continue
+            a, b = [x[k] for k in common], [y[k] for k in common]
+            diff = 100.0 * (np.mean(a) - np.mean(b))
+            cells[tasks.code_of(task)] = f"{diff:+.0f} (p={mcnemar_p(a, b):.2g})"
+        if cells:
+            out[label] = cells
+    return out
+
+
+def comparison_lines(results: list[dict], reference: str) -> list[str]:
+    table = paired_comparison(results, reference)
+    cols = [c for c in tasks.AVG16 if any(c in r for r in table.values())]
+    lines = [f"## Paired comparison with `{reference}`", "",
+             "Difference in success points on the same test episodes, and the exact McNemar p-value "
+             "(two-sided; p < 0.05 is unlikely to be episode noise).", "",
+             "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    lines += [f"| {label} | " + " | ".join(r.get(c, "–") for c in cols) + " |" for label, r in table.items()]
+    return lines + [""]
+
+
 def sweeps(runs_root: str | Path) -> list[dict]:
     return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))]
 
 
-def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = ()) -> str:
+def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),
+                 compare: str | None = None) -> str:
     from readjax.sweep import format_table7
 
     results = collect(runs_root, exclude)
@@ -186,6 +250,8 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
             if not chart_shown:  # the chart shows the first table (the main one when there is one)
                 lines += [f"![success by task]({chart.name})", ""]
                 chart_shown = True
+    if compare:
+        lines += comparison_lines(listed, compare)
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]

@@ -66,6 +66,38 @@ def test_provenance_separates_machines_and_differing_versions(tmp_path):
 def test_rows_sort_numbers_by_value():
     from readjax.report import natural_key
 
-    labels = ["read: cheat10_N0", "read: cheat1_N100", "read: cheat3_N0", "read: cheat1_N0", "read: spe_N10"]
+    labels = ["read: cheat10_N0", "runs1k/read: spe_N10", "read: cheat1_N100", "read: cheat3_N0", "read: cheat1_N0",
+              "read: spe_N10", "read"]
     assert sorted(labels, key=natural_key) == [
-        "read: cheat1_N0", "read: cheat1_N100", "read: cheat3_N0", "read: cheat10_N0", "read: spe_N10"]
+        "read", "read: cheat1_N0", "read: cheat1_N100", "read: cheat3_N0", "read: cheat10_N0", "read: spe_N10",
+        "runs1k/read: spe_N10"]
+
+
+def test_mcnemar_exact_values():
+    from readjax.report import mcnemar_p
+
+    assert mcnemar_p([True] * 6 + [False] * 4, [False] * 6 + [False] * 4) == 2 / 64  # 6 discordant, one way
+    assert mcnemar_p([True, False], [True, False]) == 1.0  # no discordant episodes
+    assert mcnemar_p([True, False], [False, True]) == 1.0  # one each way
+    import pytest
+
+    with pytest.raises(ValueError, match="same episodes"):
+        mcnemar_p([True], [True, False])
+
+
+def test_compare_pairs_rows_on_common_episodes(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    seeds = list(range(10))
+    for run, name, succ in [("read", "spe_N100", [True] * 8 + [False] * 2),
+                            ("deterministic", "direct", [False] * 2 + [True] * 6 + [False] * 2)]:
+        _write(runs, "reach_target", run, name, sum(succ) / 10)
+        f = runs / "reach_target" / run / "eval" / f"{name}.json"
+        r = json.loads(f.read_text())
+        r.update(seeds=seeds, success=succ)
+        f.write_text(json.dumps(r))
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--compare", "read: spe_N100"]) == 0
+    section = out.read_text().split("## Paired comparison with `read: spe_N100`")[1].split("## Provenance")[0]
+    assert "| deterministic | -20 (p=0.5) |" in section  # 2 discordant episodes, both for READ
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--compare", "nope"]) == 2
+    assert "no row 'nope'" in capsys.readouterr().err
