@@ -117,7 +117,8 @@ class Stage:
         self._check_identity()
         options = ocp.CheckpointManagerOptions(max_to_keep=spec.keep, create=True,
                                                enable_async_checkpointing=False)
-        self.manager = ocp.CheckpointManager(self.dir / "checkpoints", options=options,
+        # orbax refuses relative paths (`--out runs` is the CLI default): hand it an absolute one
+        self.manager = ocp.CheckpointManager((self.dir / "checkpoints").absolute(), options=options,
                                              item_names=("state",))
 
     # -------------------------------------------------------------- identity

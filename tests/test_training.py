@@ -51,6 +51,14 @@ def test_resume_continues_at_the_right_step(tmp_path):
     assert (stage.dir / "loss.png").exists()
 
 
+def test_relative_run_folder_checkpoints(tmp_path, monkeypatch):
+    """The CLIs' default --out is relative (runs/); orbax only takes absolute paths."""
+    monkeypatch.chdir(tmp_path)
+    stage = Stage("runs/rel", "toy", SPEC, {}, "fp")
+    stage.fit(params0(), loss_fn, sample, progress=False, stop_at=10)
+    assert stage.latest_step() == 10 and (tmp_path / "runs" / "rel" / "toy" / "checkpoints" / "10").is_dir()
+
+
 def test_checkpoint_round_trip_is_exact(tmp_path):
     stage = Stage(tmp_path, "toy", SPEC, {}, "fp")
     state = stage.fit(params0(), loss_fn, sample, progress=False, stop_at=10)
