@@ -37,11 +37,12 @@ def fusion_flag_known(jaxlib_version: str | None) -> bool:
     return (major, minor) < (0, 11)
 
 
-def _installed_jaxlib() -> str | None:
+def installed_version(package: str) -> str | None:
+    """An installed distribution's version, None if absent (no import of the package itself)."""
     from importlib import metadata
 
     try:
-        return metadata.version("jaxlib")
+        return metadata.version(package)
     except metadata.PackageNotFoundError:
         return None
 
@@ -49,7 +50,7 @@ def _installed_jaxlib() -> str | None:
 def configure_xla_flags() -> None:
     """Append the CPU fusion-emitter flag to XLA_FLAGS (idempotent) where jaxlib knows it."""
     flags = os.environ.get("XLA_FLAGS", "")
-    if not fusion_flag_known(_installed_jaxlib()):
+    if not fusion_flag_known(installed_version("jaxlib")):
         return
     if "xla_cpu_use_fusion_emitters" not in flags:
         os.environ["XLA_FLAGS"] = (flags + " " + _CPU_FLAG).strip()

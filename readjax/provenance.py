@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import platform
-from importlib import metadata
+
+from readjax._runtime import installed_version
 
 PACKAGES = ("readjax", "jax", "jaxlib", "flax", "optax", "orbax-checkpoint", "mujoco", "mujoco-mjx",
             "numpy", "scipy", "h5py")
@@ -12,10 +13,7 @@ PACKAGES = ("readjax", "jax", "jaxlib", "flax", "optax", "orbax-checkpoint", "mu
 def versions() -> dict[str, str]:
     out = {"python": platform.python_version()}
     for p in PACKAGES:
-        try:
-            out[p] = metadata.version(p)
-        except metadata.PackageNotFoundError:
-            out[p] = "not installed"
+        out[p] = installed_version(p) or "not installed"
     return out
 
 

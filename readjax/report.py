@@ -4,13 +4,14 @@ Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenan
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 
 from readjax import tasks
 from readjax.evaluation import success_table
-from readjax.sweep import CELL_PREFIX
+from readjax.sweep import CELL_PREFIX, format_table7
 
 
 PROTOCOLS = {  # protocol -> heading of its table
@@ -74,18 +75,23 @@ def row_label(r: dict) -> str:
     return f"{r['_run_name']}: {name}"
 
 
-def tables(results: list[dict]) -> dict[str, dict[str, float]]:
-    rows: dict[str, dict[str, float]] = {}
+def rows_by_label(results: list[dict]) -> dict[str, dict[str, dict]]:
+    """The results as table rows: row label -> task -> result."""
+    rows: dict[str, dict[str, dict]] = {}
     for r in results:
-        rows.setdefault(row_label(r), {})[r["task"]] = r["success_rate"]
-    return {label: success_table(rates) for label, rates in sorted(rows.items(), key=lambda kv: natural_key(kv[0]))}
+        rows.setdefault(row_label(r), {})[r["task"]] = r
+    return rows
+
+
+def tables(results: list[dict]) -> dict[str, dict[str, float]]:
+    rows = rows_by_label(results)
+    return {label: success_table({t: r["success_rate"] for t, r in rows[label].items()})
+            for label in sorted(rows, key=natural_key)}
 
 
 def natural_key(text: str) -> tuple:
     """Row order: by run (plain text order, so ``runs/...`` stays before ``runs1k/...``), then by
     the evaluation name with numbers by value (cheat3 before cheat10, N10 before N100)."""
-    import re
-
     run, _, name = text.partition(":")
     return run, [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", name)]
 
@@ -149,10 +155,8 @@ def provenance_lines(results: list[dict]) -> list[str]:
               "was trained with is in its `run.json`):", "",
               "| machine | " + " | ".join(differing + ["results"]) + " |", "|---" * (len(differing) + 2) + "|"]
     for key, rs in groups.items():
-        by_row: dict[str, list[str]] = {}
-        for r in rs:
-            by_row.setdefault(row_label(r), []).append(tasks.code_of(r["task"]))
-        cell = "; ".join(f"{label} ({', '.join(codes)})" for label, codes in sorted(by_row.items()))
+        cell = "; ".join(f"{label} ({', '.join(tasks.code_of(t) for t in by_task)})"
+                         for label, by_task in sorted(rows_by_label(rs).items()))
         lines.append("| " + " | ".join(key) + f" | {cell} |")
     return lines
 
@@ -181,9 +185,7 @@ def paired_comparison(results: list[dict], reference: str) -> dict[str, dict[str
     """Each row against the ``reference`` row (a label of the tables) on the episodes both ran:
     the difference in success points and the exact McNemar p-value, per task. With 100 episodes a
     difference of a few points is usually noise; the p-value says which are not."""
-    rows: dict[str, dict[str, dict]] = {}
-    for r in results:
-        rows.setdefault(row_label(r), {})[r["task"]] = r
+    rows = rows_by_label(results)
     if reference not in rows:
         raise ValueError(f"--compare: no row {reference!r}; rows are: {', '.join(sorted(rows, key=natural_key))}")
     ref = rows[reference]
@@ -224,8 +226,6 @@ def sweeps(runs_root: str | Path) -> list[dict]:
 
 def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),
                  compare: str | None = None) -> str:
-    from readjax.sweep import format_table7
-
     results = collect(runs_root, exclude)
     if not results:
         raise FileNotFoundError(f"no evaluation results under {runs_root} (run experiments.evaluate first)")
