@@ -25,6 +25,7 @@ import numpy as np
 from flax import struct
 from jax import lax
 
+from readjax.prng import seed_pure_fn
 from readjax.sim import mjx
 from readjax.sim.controller import WaypointPlan
 from readjax.sim.grasp import GraspSpec, GraspState
@@ -70,6 +71,14 @@ class TaskEnv:
     expert_durations: ClassVar[tuple[int, ...]] = ()
     substeps: ClassVar[int] = 4
 
+    def __init_subclass__(cls, **kwargs):
+        """Every task's ``sample_scene`` draws from threefry keys (:mod:`readjax.prng`), so a scene is
+        a pure function of (task, seed): the same under any batch size, batch position or jit."""
+        super().__init_subclass__(**kwargs)
+        hook = cls.__dict__.get("sample_scene")
+        if hook is not None and not getattr(hook, "seed_pure", False):
+            cls.sample_scene = seed_pure_fn(hook)
+
     def __init__(self):
         self.mj_model = load_model(self.xml)
         self.mx = mjx.put_model(self.mj_model)
@@ -96,6 +105,7 @@ class TaskEnv:
         """Read ids of the task's bodies/geoms/joints from ``self.mj_model``."""
 
     def sample_scene(self, key: jax.Array) -> Scene:
+        """The episode's scene; ``key`` (any implementation) is turned into a threefry key first."""
         raise NotImplementedError
 
     def expert_plan(self, scene: Scene) -> WaypointPlan:
