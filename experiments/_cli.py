@@ -14,16 +14,17 @@ USER_ERRORS = (ValueError, FileNotFoundError, DatasetError, UnknownTaskError, Ch
 
 
 def run(main, argv=None) -> int:
-    """Call ``main(argv)``; user errors print one line on stderr and exit with status 2."""
+    """Call ``main(argv)``; user errors print one line on stderr and exit with status 2; otherwise
+    the exit status is what ``main`` returns (None: 0)."""
     try:
-        main(argv)
+        rc = main(argv)
     except USER_ERRORS as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted; re-run the same command to resume", file=sys.stderr)
         return 130
-    return 0
+    return int(rc or 0)
 
 
 def positive_int(text: str) -> int:

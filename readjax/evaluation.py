@@ -1,118 +1,31 @@
-"""Executing predicted motions in simulation (METHOD.md section 11) and success tables.
+"""Evaluation: plan for a test split, execute every plan in the episode's stored scene, tabulate.
 
-A plan's 101 frames are converted to world end-effector poses with the dataset's camera, each
-pose is solved by IK (warm-started from the previous one, so the arm takes the nearby branch), and
-the arm moves through the joint-space waypoints in order with the gripper open when grip > 0.5.
-A waypoint IK cannot reach (error > ``reach_tol``) is skipped (the arm holds the previous one);
-more than ``max_skipped`` skips abort the episode as a failure. Success = the task's condition held
-at any control step (the environment tracks it), without a failure.
+Two entry points share one execution path (:func:`run_plans`: the scene guard, then
+:func:`readjax.sim.execute.execute_motions`): :func:`evaluate` runs a planner's motions and
+:func:`replay_ground_truth` the split's own recorded motions, which must succeed 100 % -- the
+check that an evaluation measures what it says.
 """
 
 from __future__ import annotations
 
-import functools
+import json
+import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax import lax
+from tqdm.auto import tqdm
 
-from readjax import sharding, tasks
+from readjax import provenance, tasks
 from readjax.data import motion as motion_lib
-from readjax.sim import ik
-from readjax.sim.camera import CameraParams
-from readjax.sim.controller import rollout_joints
-from readjax.sim.kinematics import HOME_Q
+from readjax.data.guard import check_scene_images
+from readjax.data.store import Dataset
+from readjax.sim.execute import execute_motions
 
-TRACE_KEYS = ("tcp_pos", "ctrl", "attached", "rel_pos", "rel_quat")
 AVG12 = tasks.AVG12
 AVG16 = tasks.AVG16
-
-
-@dataclass(frozen=True)
-class ExecConfig:
-    ik_iterations: int = 25  # per waypoint, warm-started from the previous waypoint
-    reach_pos_tol: float = 0.01  # m: a waypoint IK misses by more is "cannot be reached"
-    reach_rot_tol: float = 0.1  # rad
-    max_skipped: int = 10  # more skipped waypoints abort the episode (METHOD.md section 11)
-
-
-def segment_durations(env) -> tuple[int, ...]:
-    """Control steps between consecutive frames: the expert's episode length spread over 100 gaps,
-    so a plan is executed at the demonstrations' pace."""
-    per = max(1, int(round(env.episode_steps / 100)))
-    return (per,) * (motion_lib.FRAMES)
-
-
-def solve_waypoints(env, pos: jax.Array, rot: jax.Array, cfg: ExecConfig):
-    """IK through (W, 3) / (W, 3, 3) poses; returns q (W, 7) with skipped ones held, skipped (W,)."""
-    q_home = jnp.asarray(HOME_Q)
-
-    def body(q_prev, target):
-        p, r = target
-        q = ik.solve_ik(env.chain, q_prev, p, r, cfg.ik_iterations)
-        pe, re = ik.pose_error(env.chain, q, p, r)
-        ok = (pe < cfg.reach_pos_tol) & (re < cfg.reach_rot_tol)
-        q_keep = jnp.where(ok, q, q_prev)
-        return q_keep, (q_keep, ~ok)
-
-    _, (q, skipped) = lax.scan(body, q_home, (pos, rot))
-    return q, skipped
-
-
-@functools.cache
-def executor(env, cam: CameraParams, cfg: ExecConfig = ExecConfig()):
-    """jit(vmap(execute)) for one task and camera: (scenes, motions (B,101,10)) -> results dict."""
-    durations = segment_durations(env)
-
-    def execute(scene, motion):
-        pos, rot, grip = motion_lib.decode(cam, motion)
-        q_way, skipped = solve_waypoints(env, pos, rot, cfg)
-        state = env.reset_to(scene)
-        state, trace = rollout_joints(env, state, q_way, (grip > 0.5).astype(jnp.float32), durations)
-        n_skip = jnp.sum(skipped)
-        aborted = n_skip > cfg.max_skipped
-        return {
-            "success": state.success & ~aborted,
-            "skipped": n_skip,
-            "aborted": aborted,
-            "failure": state.failure,
-            "tcp_pos": trace.tcp_pos,
-            "ctrl": trace.ctrl,
-            "attached": trace.attached,
-            "rel_pos": trace.rel_pos,
-            "rel_quat": trace.rel_quat,
-        }
-
-    return jax.jit(jax.vmap(execute))
-
-
-def execute_motions(env, cam: CameraParams, scenes, motions, batch_size: int = 32,
-                    cfg: ExecConfig = ExecConfig(), keep_traces: bool = False) -> dict[str, np.ndarray]:
-    """Execute many plans in batches (padded to a fixed batch so one compile serves all)."""
-    motions = np.asarray(motions, np.float32)
-    motion_lib.check_motion(motions, "plans")
-    n = len(motions)
-    sharding.check_batch(batch_size)
-    fn = executor(env, cam, cfg)
-    out: dict[str, list] = {}
-    for start in range(0, n, batch_size):
-        idx = np.arange(start, start + batch_size) % n  # pad the last batch by wrapping around
-        sc = jax.tree.map(lambda x: jnp.asarray(np.asarray(x)[idx]), scenes)
-        res = jax.tree.map(np.asarray, fn(sc, jnp.asarray(motions[idx])))
-        take = min(batch_size, n - start)
-        for k, v in res.items():
-            if k in TRACE_KEYS and not keep_traces:
-                continue
-            out.setdefault(k, []).append(v[:take])
-    return {k: np.concatenate(v) for k, v in out.items()}
-
-
-def scenes_for_seeds(env, seeds) -> object:
-    """The episodes' scenes, re-sampled from their seeds (pure function of (task, seed))."""
-    keys = jax.vmap(jax.random.key)(jnp.asarray(np.asarray(seeds), jnp.int32))
-    return jax.tree.map(np.asarray, jax.jit(jax.vmap(env.sample_scene))(keys))
 
 
 def success_table(rates: dict[str, float]) -> dict[str, float]:
@@ -164,21 +77,15 @@ def perturb_images(rgbd: np.ndarray, cfg: EvalConfig, seed: int) -> np.ndarray:
 
 
 def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval", progress: bool = True) -> dict:
-    """Plan for the test episodes, execute every plan in MJX, write ``out_dir/<name>.json``
-    (+ an overlay PNG and a rollout MP4) and return the result dict."""
-    import json
-    import time
-    from pathlib import Path
-
-    from tqdm.auto import tqdm
-
-    from readjax import provenance
-
+    """Plan for the test episodes, execute every plan in its stored scene (after the scene guard),
+    write ``out_dir/<name>.json`` (+ an overlay PNG and a rollout MP4) and return the result dict."""
     if cfg.episodes > len(test_ds):
         raise ValueError(f"the test split holds {len(test_ds)} episodes, fewer than --episodes {cfg.episodes}")
-    ds = test_ds.subset(np.arange(cfg.episodes)).resized(planner.image_size)
     env = planner.env
-    scenes = scenes_for_seeds(env, ds.seeds)
+    ds = test_ds.subset(np.arange(cfg.episodes))
+    check_scene_images(env, ds)  # before any planning: a mismatch wastes no time
+    ds = ds.resized(planner.image_size)
+    scenes = ds.scenes
     images = perturb_images(ds.rgbd, cfg, cfg.seed)
     n_steps = planner.n_steps if cfg.N is None else cfg.N
     t0 = time.time()
@@ -194,23 +101,25 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     plan = {k: np.concatenate([p[k] for p in plans]) for k in plans[0]}
     t_plan = time.time() - t0
     res = execute_motions(env, planner.camera, scenes, plan["motion"], batch_size=bs,
-                          keep_traces=cfg.videos > 0)
+                          keep_traces=cfg.videos > 0)  # scenes already checked against the images
     t_exec = time.time() - t0 - t_plan
     rate = float(np.mean(res["success"]))
     result = {
         "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
         "method": planner.spec.get("method", "read"), "name": name,
         "success_rate": rate, "table": success_table({planner.task: rate}),
-        "episodes": len(ds), "seeds": ds.seeds.tolist(), "success": res["success"].astype(int).tolist(),
+        "episodes": len(ds), "seeds": ds.seeds.tolist(), "scenes": "stored (guard passed)", "success": res["success"].astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         # mean world-frame distance between the retrieved and the ground-truth end-effector paths
         "retrieval_error_m": _path_distance(planner.camera, plan["retrieved"], ds.motion),
-        "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None}, "configs": planner.spec.get("configs"),
+        "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None,
+                        "refine_update": refine_update(planner.model)},
+        "configs": planner.spec.get("configs"),
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),
     }
     if out_dir is not None:
-        from readjax import viz
+        from readjax import viz  # rendering and video encoding only when pictures are written
 
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -226,6 +135,33 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
             frames = viz.rollout_video(env, scenes, traces, max_episodes=cfg.videos)
             viz.save_video(out / f"{name}_rollouts.mp4", frames)
     return result
+
+
+def refine_update(model) -> str | None:
+    """READ's inference update (``sde.update``) as the model will run it; None for other methods."""
+    sde = getattr(model, "configs", {}).get("sde")
+    return sde.update if sde is not None and hasattr(model, "set_refine_update") else None
+
+
+def replay_ground_truth(env, ds: Dataset, batch_size: int = 32) -> dict:
+    """Execute a split's own recorded motions exactly as :func:`evaluate` executes plans (scene
+    guard, decode -> IK -> MJX -> predicate). Anything below 100 % means the evaluation path does
+    not measure what it claims."""
+    t0 = time.time()
+    check_scene_images(env, ds)
+    t_guard = time.time() - t0
+    res = execute_motions(env, ds.camera, ds.scenes, ds.motion, batch_size=batch_size)
+    success = res["success"].astype(bool)
+    return {
+        "task": ds.task, "code": tasks.code_of(ds.task), "split": ds.split, "episodes": len(ds),
+        "success_rate": float(success.mean()), "successes": int(success.sum()),
+        "failed_seeds": ds.seeds[~success].tolist(), "seeds": ds.seeds.tolist(),
+        "success": success.astype(int).tolist(),
+        "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
+        "image_size": ds.image_size, "batch_size": batch_size,
+        "seconds": {"guard": round(t_guard, 2), "execution": round(time.time() - t0 - t_guard, 2)},
+        "versions": provenance.versions(), "machine": provenance.machine(),
+    }
 
 
 class _AttrTree(dict):

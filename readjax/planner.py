@@ -20,7 +20,7 @@ import numpy as np
 from readjax import retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.data import store
-from readjax.evaluation import ExecConfig, solve_waypoints
+from readjax.sim.execute import ExecConfig, solve_waypoints
 
 
 @dataclass

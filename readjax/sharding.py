@@ -34,6 +34,14 @@ def check_batch(batch: int) -> None:
         raise ValueError(f"batch size {batch} must be a multiple of the device count {n}")
 
 
+def fit_batch(batch: int, n: int) -> int:
+    """The batch to run ``n`` items in at most ``batch`` at a time: no larger than needed, and a
+    multiple of the device count (a short last batch is padded by the caller)."""
+    d = jax.device_count()
+    b = max(1, min(batch, n))
+    return -(-b // d) * d
+
+
 def shard_batch(tree):
     """Place every leaf's leading (batch) axis across the devices."""
     return jax.tree.map(lambda x: jax.device_put(x, batch_sharding(np.ndim(x) - 1)), tree)

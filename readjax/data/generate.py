@@ -19,12 +19,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import provenance, sharding, tasks
+from readjax.prng import seed_pure
 from readjax.data import store
 from readjax.data.resample import resample_demo
 from readjax.sim import camera as cam_lib
 from readjax.sim.controller import rollout
 from readjax.sim.kinematics import fk
-from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR, SceneRenderer, normalise_depth
+from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR, SceneRenderer, render_scenes
 
 SPLITS = {"train": 0, "test": 1_000_000}
 MAX_ATTEMPT_FACTOR = 3  # give up when the expert fails this often (a broken task)
@@ -61,10 +62,12 @@ def split_seeds(split: str, start: int, count: int) -> np.ndarray:
 
 @functools.cache
 def episode_fn(env):
-    """jit(vmap(reset -> expert rollout)) over a batch of integer seeds (one per env and process)."""
+    """jit(vmap(reset -> expert rollout)) over a batch of integer seeds (one per env and process).
+    Scenes come from seed-pure keys (``TaskEnv.sample_scene``), so an episode is a function of its
+    seed alone, whatever the batch."""
 
     def episode(seed):
-        st0 = env.reset(jax.random.key(seed))
+        st0 = env.reset(seed_pure(seed))
         plan = env.expert_plan(st0.scene)
         st, trace = rollout(env, st0, plan, env.expert_durations)
         q0 = st0.data.qpos[env.chain.qpos_adr]
@@ -91,18 +94,6 @@ def traces_to_motions(env, cam: cam_lib.CameraParams, q0: np.ndarray, trace) -> 
     return np.stack(motions).astype(np.float32), np.stack(joint_out).astype(np.float32)
 
 
-def render_first_frames(renderer: SceneRenderer, env, scenes) -> tuple[np.ndarray, np.ndarray]:
-    rgb, depth = [], []
-    qpos, mpos, mquat, rgba = (np.asarray(x) for x in (scenes.qpos, scenes.mocap_pos, scenes.mocap_quat,
-                                                       scenes.rgba))
-    for b in range(len(qpos)):
-        renderer.set_state(qpos[b], mpos[b], mquat[b], env.recolour_ids, rgba[b])
-        c, d = renderer.render(depth=True)
-        rgb.append(c)
-        depth.append(normalise_depth(d))
-    return np.stack(rgb), np.stack(depth)
-
-
 def dataset_meta(cfg: GenerateConfig, env, cam: cam_lib.CameraParams) -> dict:
     return {
         "task": cfg.task, "code": env.code, "split": cfg.split, "image_size": cfg.image_size,
@@ -119,7 +110,8 @@ def check_existing(path: Path, meta: dict) -> None:
         if store.shards(path):
             raise store.DatasetError(f"{path} holds shards but no meta.json; remove it or choose another --out")
         return
-    for key in ("task", "split", "image_size", "camera_name", "format_version"):
+    store.check_format(path, old)
+    for key in ("task", "split", "image_size", "camera_name"):
         if old.get(key) != meta[key]:
             raise store.DatasetError(
                 f"{path} already holds a dataset with {key}={old.get(key)!r}, not {meta[key]!r}; "
@@ -159,7 +151,7 @@ def generate(cfg: GenerateConfig, progress: bool = True, stop_after_batches: int
                 )
             seeds = split_seeds(cfg.split, next_seed, cfg.batch_size)
             scenes, ok, q0, trace = run_fn(jnp.asarray(seeds, jnp.int32))  # async: render meanwhile
-            rgb, depth = render_first_frames(renderer, env, scenes)
+            rgb, depth = render_scenes(renderer, env, scenes)
             ok = np.asarray(ok)
             # Keep successes in seed order until the target count; later seeds are not attempted.
             need = cfg.episodes - kept
@@ -171,6 +163,7 @@ def generate(cfg: GenerateConfig, progress: bool = True, stop_after_batches: int
             store.write_shard(
                 path, shard_idx, rgb=rgb[sel], depth01=depth[sel], motion=motions, joints=joints,
                 seeds=seeds[sel], raw_frames=np.full(len(sel), env.episode_steps + 1),
+                scenes=store.take_scenes(scenes, sel),
                 attempted_seeds=seeds[:last], failed_seeds=seeds[:last][~ok],
             )
             shard_idx += 1

@@ -6,11 +6,18 @@ Layout of a split (``data/<task>/<split>/``)::
     shard_00000.h5     rgb (n,H,W,3) uint8 · depth (n,H,W) uint16 (normalised depth * 65535)
                        motion (n,101,10) f32 · joints (n,101,7) f32 · seed (n,) i64
                        raw_frames (n,) i32; attrs: attempted_seeds, failed_seeds
+                       scene/ qpos, mocap_pos, mocap_quat, rgba, params/<name>: each episode's
+                       scene, everything ``env.reset_to`` needs (format 2)
     summary.json       what generation reports (kept, attempted, expert success rate, ...)
 
 A shard is written to a temporary name and renamed into place, so an interrupted run leaves
 only whole shards; resuming reads the attempted seeds back from them (no duplicates, nothing
 lost). Loading concatenates the shards in order.
+
+Format 2 stores each episode's scene beside its image, and evaluation executes that stored scene.
+Format-1 datasets are refused: their scenes could only be re-sampled from seeds, and before
+readjax.prng that re-sampling depended on the batch (two thirds of test episodes ran in a scene
+other than the one their image showed).
 """
 
 from __future__ import annotations
@@ -24,9 +31,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from readjax.sim.camera import CameraParams
+import jax
 
-FORMAT_VERSION = 1
+from readjax.sim.camera import CameraParams
+from readjax.sim.env import Scene
+
+FORMAT_VERSION = 2  # 2: each episode's scene is stored (1 re-sampled it from the seed)
 SHARD_GLOB = "shard_*.h5"
 
 
@@ -49,7 +59,8 @@ class Dataset:
     motion: np.ndarray  # (N, 101, 10) float32
     joints: np.ndarray  # (N, 101, 7) float32
     seeds: np.ndarray  # (N,) int64
-    meta: dict = field(default_factory=dict)
+    scenes: Scene | None = None  # leaves (N, ...): each episode's scene, what env.reset_to executes
+    meta: dict = field(default_factory=dict)  # meta.json as generated (image_size: the rendered size)
 
     def __len__(self) -> int:
         return len(self.seeds)
@@ -75,12 +86,17 @@ class Dataset:
     def resized(self, size: int) -> "Dataset":
         """The same data with images area-downsampled to size x size (size must divide H)."""
         return Dataset(self.task, self.split, scale_camera(self.camera, size), resize_images(self.rgbd, size),
-                       self.motion, self.joints, self.seeds, dict(self.meta, image_size=size))
+                       self.motion, self.joints, self.seeds, self.scenes, self.meta)
 
     def subset(self, idx) -> "Dataset":
         idx = np.asarray(idx)
         return Dataset(self.task, self.split, self.camera, self.rgbd[idx], self.motion[idx],
-                       self.joints[idx], self.seeds[idx], self.meta)
+                       self.joints[idx], self.seeds[idx], take_scenes(self.scenes, idx), self.meta)
+
+
+def take_scenes(scenes: Scene, idx) -> Scene:
+    """Episodes ``idx`` of a batch of scenes (numpy leaves)."""
+    return jax.tree.map(lambda x: np.asarray(x)[idx], scenes)
 
 
 def resize_images(images: np.ndarray, size: int) -> np.ndarray:
@@ -138,10 +154,13 @@ def decode_depth(depth_u16: np.ndarray) -> np.ndarray:
 
 
 def write_shard(path: Path, index: int, *, rgb: np.ndarray, depth01: np.ndarray, motion: np.ndarray,
-                joints: np.ndarray, seeds: np.ndarray, raw_frames: np.ndarray,
+                joints: np.ndarray, seeds: np.ndarray, raw_frames: np.ndarray, scenes: Scene,
                 attempted_seeds: np.ndarray, failed_seeds: np.ndarray) -> Path:
     """Write one shard atomically; returns its path."""
     n = len(seeds)
+    for name, leaf in _scene_leaves(scenes):
+        if leaf.shape[:1] != (n,):
+            raise ValueError(f"shard scene/{name} has shape {leaf.shape}, expected leading ({n},)")
     for name, arr, shape in (("rgb", rgb, (n,)), ("depth", depth01, (n,)), ("motion", motion, (n, 101, 10)),
                              ("joints", joints, (n, 101, 7))):
         if arr.shape[: len(shape)] != shape:
@@ -159,9 +178,30 @@ def write_shard(path: Path, index: int, *, rgb: np.ndarray, depth01: np.ndarray,
         f.create_dataset("raw_frames", data=np.asarray(raw_frames, np.int32))
         f.attrs["attempted_seeds"] = np.asarray(attempted_seeds, np.int64)
         f.attrs["failed_seeds"] = np.asarray(failed_seeds, np.int64)
+        for name, leaf in _scene_leaves(scenes):
+            f.create_dataset(f"scene/{name}", data=leaf)
         f.attrs["format_version"] = FORMAT_VERSION
     os.replace(tmp, final)
     return final
+
+
+SCENE_ARRAYS = ("qpos", "mocap_pos", "mocap_quat", "rgba")
+
+
+def _scene_leaves(scenes: Scene) -> list[tuple[str, np.ndarray]]:
+    """(name, array) of every scene field, params as ``params/<name>``."""
+    out = [(k, np.asarray(getattr(scenes, k))) for k in SCENE_ARRAYS]
+    return out + [(f"params/{k}", np.asarray(v)) for k, v in sorted(scenes.params.items())]
+
+
+def _read_scenes(group) -> Scene:
+    params = group.get("params")
+    return Scene(**{k: np.asarray(group[k]) for k in SCENE_ARRAYS},
+                 params={k: np.asarray(params[k]) for k in params} if params is not None else {})
+
+
+def _concat_scenes(parts: list[Scene]) -> Scene:
+    return jax.tree.map(lambda *xs: np.concatenate(xs), *parts)
 
 
 def clean_partial(path: Path) -> int:
@@ -211,32 +251,52 @@ def load_dataset(path: str | os.PathLike, limit: int | None = None) -> Dataset:
     if meta is None:
         raise DatasetError(f"no dataset at {path} (meta.json missing); generate it with "
                            f"`python -m experiments.generate`")
+    check_format(path, meta)
     files = shards(path)
     if not files:
         raise DatasetError(f"dataset {path} has no shards yet")
     parts = {k: [] for k in ("rgb", "depth", "motion", "joints", "seed")}
+    scene_parts = []
     total = 0
     for s in files:
         try:
             with h5py.File(s, "r") as f:
                 for k in parts:
                     parts[k].append(np.asarray(f[k]))
+                scene_parts.append(_read_scenes(f["scene"]))
         except (OSError, KeyError) as e:
             raise DatasetError(f"shard {s} is unreadable ({e}); delete it and re-run generation") from e
         total += len(parts["seed"][-1])
         if limit is not None and total >= limit:
             break
     arr = {k: np.concatenate(v) for k, v in parts.items()}
+    scenes = _concat_scenes(scene_parts)
     if limit is not None:
         if limit > len(arr["seed"]):
             raise DatasetError(f"{path} holds {len(arr['seed'])} demos, fewer than the {limit} asked for")
         arr = {k: v[:limit] for k, v in arr.items()}
+        scenes = take_scenes(scenes, np.arange(limit))
     order = np.argsort(arr["seed"], kind="stable")
     arr = {k: v[order] for k, v in arr.items()}
+    scenes = take_scenes(scenes, order)
     if not np.all(np.isfinite(arr["motion"])):
         raise DatasetError(f"{path} contains non-finite motions")
     rgbd = np.concatenate([arr["rgb"].astype(np.float32) / 255.0, decode_depth(arr["depth"])[..., None]], -1)
     return Dataset(
         task=meta["task"], split=meta["split"], camera=CameraParams.from_dict(meta["camera"]), rgbd=rgbd,
-        motion=arr["motion"], joints=arr["joints"], seeds=arr["seed"], meta=meta,
+        motion=arr["motion"], joints=arr["joints"], seeds=arr["seed"], scenes=scenes, meta=meta,
     )
+
+
+def check_format(path: Path, meta: dict) -> None:
+    """Refuse a dataset of another format in one line that says how to regenerate it."""
+    version = meta.get("format_version")
+    if version == FORMAT_VERSION:
+        return
+    why = ("it stores no scenes, and its scenes cannot be rebuilt from seeds (before format 2 a scene "
+           "depended on its generation batch)" if version == 1 else "this readjax reads format "
+           f"{FORMAT_VERSION}")
+    raise DatasetError(
+        f"{path} is a format-{version} dataset: {why}; delete it and regenerate: python -m "
+        f"experiments.generate --task {meta.get('task', 'TASK')} --split {meta.get('split', 'SPLIT')} "
+        f"--episodes N --image-size {meta.get('image_size', 64)} --out {Path(path).parent.parent}")

@@ -84,3 +84,17 @@ class SceneRenderer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def render_scenes(renderer: SceneRenderer, env, scenes) -> tuple[np.ndarray, np.ndarray]:
+    """First frames of a batch of scenes (leaves (B, ...)): RGB (B, H, W, 3) uint8 and normalised
+    depth (B, H, W) float32, exactly as datasets store them."""
+    rgb, depth = [], []
+    qpos, mpos, mquat, rgba = (np.asarray(x) for x in (scenes.qpos, scenes.mocap_pos, scenes.mocap_quat,
+                                                       scenes.rgba))
+    for b in range(len(qpos)):
+        renderer.set_state(qpos[b], mpos[b], mquat[b], env.recolour_ids, rgba[b])
+        c, d = renderer.render(depth=True)
+        rgb.append(c)
+        depth.append(normalise_depth(d))
+    return np.stack(rgb), np.stack(depth)
