@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from experiments import _cli
+from readjax.config import REFINE_UPDATES
 
 
 def parser() -> argparse.ArgumentParser:
@@ -28,6 +29,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=_cli.positive_int, default=100, help="test episodes (fixed seeds)")
     p.add_argument("--N", type=int, default=None, help="refinement steps (default: 100)")
     p.add_argument("--no-refine", action="store_true", help="execute the retrieved motion (N = 0)")
+    p.add_argument("--refine", default=None, choices=REFINE_UPDATES,
+                   help="READ's refinement update (default: the run's sde.update): renoise = the paper's loop, "
+                        "cold = the improved cold-diffusion update, cold_anchor = cold after an anchoring first "
+                        "step (readjax.diffusion.refine)")
     p.add_argument("--retrieval", default="spe", choices=("spe", "cheat"), help="SPE, or the oracle")
     p.add_argument("--rank", type=_cli.positive_int, default=1, help="oracle: the rank-th nearest neighbour")
     p.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std on test RGB (Table 9)")
@@ -41,10 +46,12 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def default_name(args, uses_retrieval: bool = True, iterative: bool = True, default_n: int | None = None) -> str:
+def default_name(args, uses_retrieval: bool = True, iterative: bool = True, default_n: int | None = None,
+                 refine_update: str | None = None) -> str:
     """Result name from the options that apply to the method: the retrieval (when the method
     retrieves, or the oracle is asked for), N (when it samples iteratively; ``default_n`` when --N
-    is not given); ``direct`` for a one-pass method without retrieval."""
+    is not given; ``_cold`` when READ refines with the cold-diffusion update, ``refine_update``);
+    ``direct`` for a one-pass method without retrieval."""
     n = 0 if args.no_refine else (args.N if args.N is not None else default_n)
     parts = []
     if uses_retrieval or args.retrieval == "cheat":
@@ -53,6 +60,8 @@ def default_name(args, uses_retrieval: bool = True, iterative: bool = True, defa
         parts.append(f"N{'default' if n is None else n}")
     if not parts:
         parts.append("direct")
+    if refine_update not in (None, "renoise") and iterative and n != 0:
+        parts.append(refine_update)
     if args.noise:
         parts.append(f"noise{args.noise:g}")
     if args.brightness != 1.0:
@@ -87,7 +96,12 @@ def main(argv=None) -> None:
                                 seed=args.seed, videos=args.videos, image_noise=args.noise,
                                 brightness=args.brightness)
     model = planner.model
-    name = args.name or default_name(args, model.uses_retrieval, model.iterative, planner.n_steps)
+    if args.refine is not None:
+        if not hasattr(model, "set_refine_update"):
+            raise ValueError(f"--refine applies to READ only, not to {planner.spec.get('method')}")
+        model.set_refine_update(args.refine)
+    name = args.name or default_name(args, model.uses_retrieval, model.iterative, planner.n_steps,
+                                     evaluation.refine_update(model))
     result = evaluation.evaluate(planner, test_ds, cfg, out_dir=Path(args.run) / "eval", name=name,
                                  progress=not args.quiet)
     label = f"{result['method']} ({name})"

@@ -144,19 +144,29 @@ class DenoiserConfig:
             raise ValueError("DenoiserConfig.drop_path must be in [0, 1)")
 
 
+REFINE_UPDATES = ("renoise", "cold", "cold_anchor")
+
+
 @dataclass(frozen=True)
 class SDEConfig:
     """The mean-reverting SDE of METHOD.md section 5.
 
     ``lam`` is Table 7's L (stationary noise level), ``theta1`` its T (end of the linear theta
     schedule). ``theta0=None`` means theta0 = lam, the released code's quirk kept as the default.
-    ``t_min`` is the smallest training time.
+    ``t_min`` is the smallest training time. ``update`` is READ's refinement step at inference
+    (``readjax.diffusion.refine``): "renoise" re-noises the prediction to the next time (the paper,
+    METHOD.md section 8), "cold" moves the latent by the change of the degradation between the two
+    times (the improved cold-diffusion update of Bansal et al.; deterministic), "cold_anchor" does
+    the same after a first step that anchors the latent at the degradation of the first prediction
+    (the paper's first step without its noise). Inference only: a trained run can be evaluated with
+    any of them.
     """
 
     lam: float = 0.5
     theta1: float = 2.0
     theta0: float | None = None
     t_min: float = 1e-5
+    update: str = "renoise"
 
     def __post_init__(self):
         if self.lam <= 0:
@@ -165,6 +175,8 @@ class SDEConfig:
             raise ValueError(f"SDEConfig.t_min must be in (0, 1), got {self.t_min}")
         if self.theta_start < 0 or self.theta1 < 0 or self.theta_start + self.theta1 <= 0:
             raise ValueError("SDEConfig theta0 and theta1 must be >= 0 and not both 0")
+        if self.update not in REFINE_UPDATES:
+            raise ValueError(f"SDEConfig.update must be one of {', '.join(REFINE_UPDATES)}, got {self.update!r}")
 
     @property
     def theta_start(self) -> float:

@@ -16,6 +16,13 @@ def test_read_like_methods_name_retrieval_and_N():
     assert _name(["--noise", "0.1", "--brightness", "0.5", "--N", "10"]) == "spe_N10_noise0.1_bright0.5"
 
 
+def test_cold_refinement_is_named_where_it_applies():
+    assert _name(["--N", "10"], default_n=100, refine_update="cold") == "spe_N10_cold"
+    assert _name([], default_n=100, refine_update="cold") == "spe_N100_cold"
+    assert _name(["--no-refine"], default_n=100, refine_update="cold") == "spe_N0"  # nothing refined
+    assert _name(["--N", "10"], default_n=100, refine_update="renoise") == "spe_N10"  # the paper's loop
+
+
 def test_vpsde_has_no_retrieval_part():
     assert _name(["--N", "20"], uses_retrieval=False) == "N20"
     assert _name([], uses_retrieval=False, default_n=100) == "N100"

@@ -183,6 +183,11 @@ class ReadModel(common.DenoiserRunModel):
         self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
         return self
 
+    def set_refine_update(self, update: str) -> None:
+        """Refine with another inference update ("renoise": the paper, "cold"; ``SDEConfig.update``).
+        The trained weights do not depend on it."""
+        self.configs = dict(self.configs, sde=dataclasses.replace(self.configs["sde"], update=update))
+
     def generate(self, features, m_r, key, n_steps: int) -> jax.Array:
         from readjax.diffusion.refine import refine
 

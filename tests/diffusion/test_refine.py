@@ -89,3 +89,47 @@ def test_with_the_kinematic_autoencoder(setup):
     kp = jit_init(kae, key(5), m_r)
     out = refine(kae, kp, den, dp, feats, m_r, key(6), 1, SDE)
     assert out.shape == (B, 101, 10) and bool(jnp.all(jnp.isfinite(out)))
+
+
+def test_cold_update_follows_its_formula_and_is_deterministic(setup):
+    """sde.update="cold": z <- z + (Enc(M̂0) - zR)(a(t_next) - a(t)) from z = zR, written out by hand;
+    no noise (any key gives the same plan); its first step is the paper's first step."""
+    ae, ap, den, dp, feats, m_r = setup
+    cold = dataclasses.replace(SDE, update="cold")
+    final, hist = refine(ae, ap, den, dp, feats, m_r, key(7), 3, cold, return_history=True)
+    other = refine(ae, ap, den, dp, feats, m_r, key(8), 3, cold)
+    np.testing.assert_array_equal(final, other)
+    enc = jax.jit(lambda m: ae.apply(ap, m, method="code"))
+    dec = jax.jit(lambda z: ae.apply(ap, z, method="decode"))
+    d = jax.jit(lambda m, t: den.apply(dp, feats, m, t, method="denoise"))
+    ts = np.linspace(1.0, 1e-3, 4)
+    z_r = enc(m_r)
+    z = z_r
+    for k in range(3):
+        m0 = d(dec(z), ts[k])
+        np.testing.assert_allclose(hist[k], m0, atol=2e-4)
+        z = z + (enc(m0) - z_r) * (irsde.mean_coef(ts[k + 1], SDE) - irsde.mean_coef(ts[k], SDE))
+    np.testing.assert_array_equal(final, hist[-1])
+    paper_first = refine(ae, ap, den, dp, feats, m_r, key(7), 1, SDE)
+    np.testing.assert_allclose(refine(ae, ap, den, dp, feats, m_r, key(7), 1, cold), paper_first, atol=1e-5)
+    with pytest.raises(ValueError, match="update must be one of"):
+        SDEConfig(update="fancy")
+
+
+def test_cold_anchor_first_step_anchors_at_the_degraded_prediction(setup):
+    """sde.update="cold_anchor": step 0 sets z = zR + (Enc(M̂0) - zR) a(t_1), later steps as "cold"."""
+    ae, ap, den, dp, feats, m_r = setup
+    anchored = dataclasses.replace(SDE, update="cold_anchor")
+    final, hist = refine(ae, ap, den, dp, feats, m_r, key(7), 3, anchored, return_history=True)
+    enc = jax.jit(lambda m: ae.apply(ap, m, method="code"))
+    dec = jax.jit(lambda z: ae.apply(ap, z, method="decode"))
+    d = jax.jit(lambda m, t: den.apply(dp, feats, m, t, method="denoise"))
+    ts = np.linspace(1.0, 1e-3, 4)
+    a = lambda t: irsde.mean_coef(t, SDE)  # noqa: E731
+    z_r = enc(m_r)
+    z = z_r
+    for k in range(3):
+        m0 = d(dec(z), ts[k])
+        np.testing.assert_allclose(hist[k], m0, atol=2e-4)
+        z = z_r + (enc(m0) - z_r) * a(ts[1]) if k == 0 else z + (enc(m0) - z_r) * (a(ts[k + 1]) - a(ts[k]))
+    np.testing.assert_array_equal(final, hist[-1])
