@@ -54,6 +54,34 @@ def test_plan_and_execute(run, capsys):
     assert (run_dir / "eval" / "spe_N2_rollouts.mp4").stat().st_size > 1000
 
 
+def test_cold_refinement_is_evaluated_under_its_own_name(run, capsys):
+    _, run_dir = run
+    argv = ["--run", str(run_dir), "--episodes", "4", "--N", "2", "--batch-size", "4", "--videos", "0",
+            "--refine", "cold", "--quiet"]
+    assert _cli.run(evaluate_cli.main, argv) == 0
+    result = json.loads((run_dir / "eval" / "spe_N2_cold.json").read_text())
+    assert result["eval_config"]["refine_update"] == "cold" and result["episodes"] == 4
+
+
+def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
+    from experiments import refine_report as refine_report_cli
+
+    data, run_dir = run
+    out = tmp_path / "refine.json"
+    argv = ["--run", str(run_dir), "--data", str(data), "--images", "4", "--N", "0", "1", "3",
+            "--batch-size", "4", "--out", str(out), "--quiet"]
+    assert _cli.run(refine_report_cli.main, argv) == 0
+    result = json.loads(out.read_text())
+    assert [(r["split"], r["N"]) for r in result["rows"]] == [(s, n) for s in ("train", "test") for n in (0, 1, 3)]
+    train0 = result["rows"][0]
+    # a training image retrieves its own demonstration: N = 0 is the exact answer
+    assert train0["err_cm_median"] == 0 and train0["within_3cm"] == 1.0
+    assert len(result["loops"]["test"]["drift_mean_abs"]) == 2
+    assert len(result["loops"]["test"]["end_depth_err_mm_mean"]) == 3
+    assert "| train | 3 |" in capsys.readouterr().out
+    assert _cli.run(refine_report_cli.main, argv + ["--N", "-1"]) == 2
+
+
 def test_planner_api_and_bad_input(run):
     data, run_dir = run
     assert readjax.Planner is Planner  # the public name

@@ -1,0 +1,75 @@
+"""Diagnose READ's refinement against the dataset's own ground truth (no simulator).
+
+Plans for the first --images training images (retrieval returns their own demonstration: the
+exact answer) and test images at N = 0, 1, 10, 100, and prints the final-frame error against the
+ground truth -- uv in pixels, depth in mm, 3D in cm, share within 3 cm -- plus, along the largest
+N, the mean end-depth error of each step's M̂0 and each step's drift |M̂0(k+1) - M̂0(k)|.
+A sound refinement keeps the training error near 0 as N grows and brings the test error below
+N = 0's. Writes a JSON (default RUN/diagnostics/refine_<update>.json: not under eval/, which
+holds success results only).
+
+examples:
+  python -m experiments.refine_report --run runs/reach_target/read --data data/
+  python -m experiments.refine_report --run runs/RT/read --refine cold --images 32 --N 0 1 10
+  python -m experiments.refine_report --run runs/RT/read --out results/reach_target/read/refine_cold.json --refine cold
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from experiments import _cli
+from readjax.config import REFINE_UPDATES
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m experiments.refine_report", description=__doc__,
+                                formatter_class=_cli.HelpFormatter)
+    p.add_argument("--run", required=True, help="a READ run folder from experiments.train")
+    p.add_argument("--data", default=None, help="dataset root (default: the one the run was trained on)")
+    p.add_argument("--images", type=_cli.positive_int, default=100, help="images per split")
+    p.add_argument("--N", type=int, nargs="+", default=[0, 1, 10, 100], help="refinement steps to compare")
+    p.add_argument("--refine", default=None, choices=REFINE_UPDATES,
+                   help="refinement update (default: the run's sde.update)")
+    p.add_argument("--batch-size", type=_cli.positive_int, default=50)
+    p.add_argument("--out", default=None, help="JSON path")
+    p.add_argument("--quiet", action="store_true")
+    return p
+
+
+def main(argv=None) -> None:
+    args = parser().parse_args(argv)
+    if any(n < 0 for n in args.N):
+        raise ValueError(f"--N values must be >= 0, got {args.N}")
+    from readjax import refine_report
+    from readjax.data import store
+    from readjax.methods.base import read_run
+    from readjax.planner import Planner
+
+    spec = read_run(args.run)
+    root = args.data or spec["data_root"]
+    planner = Planner.load(args.run, data_root=root)
+    if not hasattr(planner.model, "set_refine_update"):
+        raise ValueError(f"refine_report diagnoses READ's refinement; {args.run} is a {spec.get('method')} run")
+    if args.refine:
+        planner.model.set_refine_update(args.refine)
+    test = store.load_dataset(store.split_dir(root, spec["task"], "test"))
+    splits = {}
+    for name, ds in (("train", planner.database), ("test", test.resized(planner.image_size))):
+        n = min(args.images, len(ds))
+        splits[name] = (ds.rgbd[:n], ds.motion[:n])
+    say = None if args.quiet else (lambda msg: print(f"  {msg}", flush=True))
+    result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say)
+    result.update(run=str(args.run), task=spec["task"], images=args.images)
+    out = Path(args.out) if args.out else Path(args.run) / "diagnostics" / f"refine_{result['update']}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2))
+    print(refine_report.format_report(result))
+    print(f"results in {out}")
+
+
+if __name__ == "__main__":
+    sys.exit(_cli.run(main))
