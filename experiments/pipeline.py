@@ -1,0 +1,85 @@
+"""Run a grid of tasks x methods end to end, resumably: generate, verify, train, evaluate.
+
+For each task (in the paper's order), each step runs only if its output is missing:
+  1. generate the test split (--test-episodes) and replay its ground truth through the evaluation
+     path (experiments.verify): anything below 100 % stops the grid -- its numbers would not count;
+  2. generate the training split (--train-episodes, the paper's 1000 by default);
+  3. train each method (--preset), then evaluate it on the test split: READ at each --read-N,
+     the others once;
+  4. copy the evaluation JSONs to RESULTS/<task>/<method>/eval/ (commit them; build tables with
+     `python -m experiments.report --runs results/`).
+Progress and an ETA cover the whole grid. A kill loses at most the step in progress; running the
+same command again skips what is done. --shard i/n runs every n-th task from the i-th, so n
+processes (or machines sharing the folders) split the grid.
+
+examples:
+  python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic
+  python -m experiments.pipeline --tasks all --shard 0/2        # and --shard 1/2 in a second shell
+  python -m experiments.pipeline --tasks RT --methods read --read-N 0 10 100 --dry-run
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from experiments import _cli
+
+
+def parser() -> argparse.ArgumentParser:
+    from readjax import methods
+    from readjax.config import preset_names
+
+    p = argparse.ArgumentParser(prog="python -m experiments.pipeline", description=__doc__,
+                                formatter_class=_cli.HelpFormatter)
+    p.add_argument("--tasks", nargs="+", required=True, help="task names or codes, or 'all' (the 16)")
+    p.add_argument("--methods", nargs="+", default=["read", "deterministic"], choices=methods.names())
+    p.add_argument("--preset", default="cpu", choices=preset_names())
+    p.add_argument("--data", default="data", help="dataset root")
+    p.add_argument("--runs", default="runs", help="runs root")
+    p.add_argument("--results", default="results", help="where evaluation JSONs are mirrored (commit them)")
+    p.add_argument("--train-episodes", type=_cli.positive_int, default=1000)
+    p.add_argument("--test-episodes", type=_cli.positive_int, default=100)
+    p.add_argument("--image-size", type=_cli.positive_int, default=64)
+    p.add_argument("--gen-batch", type=_cli.positive_int, default=32, help="episodes simulated together")
+    p.add_argument("--read-N", type=int, nargs="+", default=[0, 100], help="READ's refinement steps to evaluate")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override for training")
+    p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
+    p.add_argument("--dry-run", action="store_true", help="list the steps and whether each is done; run nothing")
+    return p
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    from readjax import pipeline, tasks
+
+    try:
+        shard = tuple(int(x) for x in args.shard.split("/"))
+        assert len(shard) == 2
+    except (ValueError, AssertionError):
+        raise ValueError(f"--shard must look like i/n (e.g. 0/2), got {args.shard!r}") from None
+    if any(n < 0 for n in args.read_N):
+        raise ValueError(f"--read-N values must be >= 0, got {args.read_N}")
+    names = tasks.names() if args.tasks == ["all"] else tuple(args.tasks)
+    cfg = pipeline.PipelineConfig(
+        tasks=names, methods=tuple(args.methods), preset=args.preset, data=args.data, runs=args.runs,
+        results=args.results, train_episodes=args.train_episodes, test_episodes=args.test_episodes,
+        image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
+        overrides=tuple(args.set), shard=shard).validate()
+    steps = pipeline.plan_steps(cfg)
+    if args.dry_run:
+        for s in steps:
+            print(f"{'done' if s.done() else 'todo'}  {s.task}: {s.label}")
+        return 0
+    try:
+        summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True))
+    except pipeline.PipelineError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    print(f"pipeline: ran {summary['ran']} steps, skipped {summary['skipped']}; seconds by kind "
+          f"{ {k: round(v) for k, v in summary['seconds'].items()} }")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_cli.run(main))

@@ -1,0 +1,176 @@
+"""A resumable grid of (task x method) work: generate -> verify -> train -> evaluate -> results/.
+
+Each step is one existing command (``experiments.generate``, ``verify``, ``train``, ``evaluate``)
+run as a subprocess, and each has a test for "done" on disk, so running the grid again skips what
+is finished and a kill loses at most the step in progress (the commands resume themselves too).
+A test split must replay its ground truth at 100 % before anything is trained on its task: a
+number from a split that does not is not a result. Finished evaluations are copied to
+``results/<task>/<run>/eval/<name>.json``, which ``experiments.report --runs results/`` reads.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from readjax import tasks
+
+
+class PipelineError(RuntimeError):
+    """A step failed, or a split's ground truth does not replay at 100 %."""
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    tasks: tuple[str, ...]
+    methods: tuple[str, ...] = ("read", "deterministic")
+    preset: str = "cpu"
+    data: str = "data"
+    runs: str = "runs"
+    results: str = "results"
+    train_episodes: int = 1000
+    test_episodes: int = 100
+    image_size: int = 64
+    gen_batch: int = 32
+    read_N: tuple[int, ...] = (0, 100)
+    overrides: tuple[str, ...] = ()  # --set for every training
+    shard: tuple[int, int] = (0, 1)  # (index, count): this process runs tasks[index::count]
+
+    def validate(self) -> "PipelineConfig":
+        names = tuple(tasks.canonical_name(t) for t in self.tasks)
+        i, n = self.shard
+        if not (n >= 1 and 0 <= i < n):
+            raise ValueError(f"--shard must be i/n with 0 <= i < n, got {i}/{n}")
+        from readjax import methods
+
+        for m in self.methods:
+            methods.module(m)
+        return PipelineConfig(**{**self.__dict__, "tasks": names})
+
+
+@dataclass
+class Step:
+    kind: str  # generate / verify / train / evaluate
+    task: str
+    label: str
+    argv: list[str]
+    done: Callable[[], bool]
+    after: Callable[[], None] = field(default=lambda: None)
+
+
+def _summary_kept(split_dir: Path) -> int:
+    f = split_dir / "summary.json"
+    return json.loads(f.read_text()).get("episodes_kept", 0) if f.exists() else 0
+
+
+def eval_args(method: str, read_n) -> list[list[str]]:
+    """The evaluations of a method (extra ``experiments.evaluate`` arguments; the command names
+    the result): READ at each N, the others once with their defaults."""
+    if method == "read":
+        return [["--N", str(n)] for n in read_n]
+    return [[]]
+
+
+def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
+    """The grid's steps in order, this shard's tasks only."""
+    data, runs, results = Path(cfg.data), Path(cfg.runs), Path(cfg.results)
+    i, n = cfg.shard
+    steps: list[Step] = []
+    for task in cfg.tasks[i::n]:
+        for split, count in (("test", cfg.test_episodes), ("train", cfg.train_episodes)):
+            d = data / task / split
+            steps.append(Step("generate", task, f"generate {split} {count}", [
+                python, "-m", "experiments.generate", "--task", task, "--split", split, "--episodes", str(count),
+                "--batch-size", str(cfg.gen_batch), "--image-size", str(cfg.image_size), "--out", str(data),
+                "--quiet"], done=lambda d=d, c=count: _summary_kept(d) >= c))
+            if split == "test":
+                out = results / task / "verify_test.json"
+                steps.append(Step("verify", task, "verify test (ground truth replay = 100 %)", [
+                    python, "-m", "experiments.verify", "--task", task, "--data", str(data), "--out", str(out),
+                    "--min", "100"], done=lambda out=out, c=count: _verified(out, c)))
+        for method in cfg.methods:
+            run = runs / task / method
+            marker = run / "pipeline_trained.json"
+            sets = sum((["--set", s] for s in cfg.overrides), [])
+            steps.append(Step("train", task, f"train {method}", [
+                python, "-m", "experiments.train", "--task", task, "--model", method, "--preset", cfg.preset,
+                "--data", str(data), "--out", str(runs), "--quiet"] + sets, done=marker.exists,
+                after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()}))))
+            for extra in eval_args(method, cfg.read_N):
+                argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", str(data),
+                        "--episodes", str(cfg.test_episodes), "--videos", "0", "--quiet"] + extra
+                steps.append(Step("evaluate", task, f"evaluate {method} {' '.join(extra) or ''}".strip(), argv,
+                                  done=lambda run=run, argv=argv: _evaluated(run, argv),
+                                  after=lambda run=run: copy_results(run, results)))
+    return steps
+
+
+def _verified(path: Path, count: int) -> bool:
+    if not path.exists():
+        return False
+    r = json.loads(path.read_text())
+    return r.get("episodes", 0) >= count and r.get("success_rate") == 1.0
+
+
+def _evaluated(run: Path, argv: list[str]) -> bool:
+    """Done when this evaluation is in the run's ledger (``pipeline_evals.json``): the command picks
+    its result's name from the trained model, so the pipeline records what it ran instead."""
+    ledger = run / "pipeline_evals.json"
+    if not ledger.exists():
+        return False
+    return " ".join(argv[3:]) in json.loads(ledger.read_text())
+
+
+def copy_results(run: Path, results: Path) -> None:
+    """Mirror a run's evaluation JSONs into results/<task>/<run>/eval/ (small, committed)."""
+    for f in sorted((run / "eval").glob("*.json")):
+        dest = results / run.parent.name / run.name / "eval" / f.name
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(f, dest)
+
+
+def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subprocess.run) -> dict:
+    """Run the steps not yet done, in order; returns {"ran": k, "skipped": s, "seconds": {...}}.
+    Progress and an ETA (from the mean time of finished steps of the same kind) go to ``log``."""
+    todo = [s for s in steps if not s.done()]
+    skipped = len(steps) - len(todo)
+    log(f"pipeline: {len(steps)} steps, {skipped} already done, {len(todo)} to run")
+    took: dict[str, list[float]] = {}
+    t_start = time.time()
+    for k, step in enumerate(todo, 1):
+        eta = _eta(todo[k - 1:], took)
+        log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
+            f"{', ETA ' + _hms(eta) if eta is not None else ''})")
+        t0 = time.time()
+        proc = runner(step.argv)
+        if proc.returncode != 0:
+            raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
+                                f"re-run: finished steps are skipped")
+        if step.kind == "evaluate":
+            ledger = Path(step.argv[step.argv.index("--run") + 1]) / "pipeline_evals.json"
+            done = json.loads(ledger.read_text()) if ledger.exists() else []
+            ledger.write_text(json.dumps(done + [" ".join(step.argv[3:])], indent=1))
+        step.after()
+        if not step.done():
+            raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
+                                f"ground truth did not replay at 100 %)")
+        took.setdefault(step.kind, []).append(time.time() - t0)
+    return {"ran": len(todo), "skipped": skipped, "seconds": {k: sum(v) for k, v in took.items()}}
+
+
+def _eta(remaining: list[Step], took: dict[str, list[float]]) -> float | None:
+    if not took:
+        return None
+    mean_all = sum(map(sum, took.values())) / sum(map(len, took.values()))
+    return sum((sum(took[s.kind]) / len(took[s.kind])) if s.kind in took else mean_all for s in remaining)
+
+
+def _hms(seconds: float) -> str:
+    s = int(seconds)
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"

@@ -1,0 +1,85 @@
+"""The grid runner: step order, skipping what is done, stopping on a failed replay, shards, ETA."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from experiments import _cli
+from experiments import pipeline as pipeline_cli
+from readjax import pipeline
+
+
+def _cfg(tmp_path, **kw):
+    base = dict(tasks=("RT", "PB"), data=str(tmp_path / "data"), runs=str(tmp_path / "runs"),
+                results=str(tmp_path / "results"), train_episodes=8, test_episodes=4)
+    return pipeline.PipelineConfig(**{**base, **kw}).validate()
+
+
+class FakeRunner:
+    """Stands in for the commands: writes what each would write, records the calls."""
+
+    def __init__(self, verify_rate=1.0):
+        self.calls, self.verify_rate = [], verify_rate
+
+    def __call__(self, argv):
+        mod = argv[2].split(".")[1]
+        self.calls.append((mod, argv))
+        arg = lambda k: argv[argv.index(k) + 1]  # noqa: E731
+        if mod == "generate":
+            d = Path(arg("--out")) / arg("--task") / arg("--split")
+            d.mkdir(parents=True, exist_ok=True)
+            (d / "summary.json").write_text(json.dumps({"episodes_kept": int(arg("--episodes"))}))
+        elif mod == "verify":
+            Path(arg("--out")).parent.mkdir(parents=True, exist_ok=True)
+            Path(arg("--out")).write_text(json.dumps({"episodes": 4, "success_rate": self.verify_rate}))
+        elif mod == "train":
+            (Path(arg("--out")) / arg("--task") / arg("--model")).mkdir(parents=True, exist_ok=True)
+        elif mod == "evaluate":
+            ev = Path(arg("--run")) / "eval"
+            ev.mkdir(parents=True, exist_ok=True)
+            name = f"spe_N{arg('--N')}" if "--N" in argv else "direct"
+            (ev / f"{name}.json").write_text("{}")
+        return subprocess.CompletedProcess(argv, 0)
+
+
+def test_grid_runs_in_order_then_skips_everything(tmp_path):
+    cfg = _cfg(tmp_path)
+    steps = pipeline.plan_steps(cfg)
+    kinds = [(s.task, s.kind) for s in steps[:6]]
+    assert kinds == [("reach_target", "generate"), ("reach_target", "verify"), ("reach_target", "generate"),
+                     ("reach_target", "train"), ("reach_target", "evaluate"), ("reach_target", "evaluate")]
+    runner, lines = FakeRunner(), []
+    out = pipeline.run_steps(steps, log=lines.append, runner=runner)
+    assert out["ran"] == len(steps) == 2 * (3 + 1 + 2 + 1 + 1)
+    assert any("ETA" in ln for ln in lines[2:])
+    assert (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N0.json").exists()
+    assert (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").exists()
+    again = FakeRunner()
+    assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
+    assert again.calls == []
+
+
+def test_a_failed_replay_stops_before_training(tmp_path):
+    runner = FakeRunner(verify_rate=0.97)
+    with pytest.raises(pipeline.PipelineError, match="100 %"):
+        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, runner=runner)
+    assert [c[0] for c in runner.calls] == ["generate", "verify"]
+
+
+def test_shards_split_the_tasks(tmp_path):
+    a = {s.task for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT", "PB", "PC"), shard=(0, 2)))}
+    b = {s.task for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT", "PB", "PC"), shard=(1, 2)))}
+    assert a == {"reach_target", "pick_up_cup"} and b == {"push_button"}
+
+
+def test_cli_dry_run_and_errors(tmp_path, capsys):
+    argv = ["--tasks", "RT", "--data", str(tmp_path / "d"), "--runs", str(tmp_path / "r"), "--dry-run"]
+    assert _cli.run(pipeline_cli.main, argv) == 0
+    assert "todo  reach_target: generate test 100" in capsys.readouterr().out
+    assert _cli.run(pipeline_cli.main, argv + ["--shard", "2/2"]) == 2
+    assert "--shard" in capsys.readouterr().err
+    assert _cli.run(pipeline_cli.main, ["--tasks", "XX", "--dry-run"]) == 2
