@@ -4,7 +4,8 @@ For a trained READ run: plan for training images (where retrieval returns the im
 demonstration, the exact answer) and test images at N = 0, 1, 10, 100; measure the final frame's
 error against the ground truth (uv in pixels, depth in mm, 3D in cm after decoding to world
 coordinates, the share within 3 cm) and, for the largest N, each step's drift |M̂0(k+1) - M̂0(k)|
-and the end-depth error of M̂0 along the loop. A refinement that helps keeps the training
+and the end-depth error of M̂0 along the loop; and the denoiser applied once to the autoencoded
+ground truth at several t (its bias: what a loop that re-anchors on its own prediction adds). A refinement that helps keeps the training
 images' error near 0 as N grows and lowers the test images' error below retrieval's (N = 0).
 """
 
@@ -53,13 +54,43 @@ def refine_history(planner, images: np.ndarray, key: jax.Array, n_steps: int, ba
     return np.concatenate(retrieved), np.concatenate(hist, axis=1)
 
 
+CLEAN_TS = (1.0, 0.5, 0.1, 0.01)
+
+
+def clean_input_errors(planner, images: np.ndarray, gt: np.ndarray, ts=CLEAN_TS,
+                       batch_size: int = 50) -> list[dict]:
+    """The denoiser applied once to the autoencoded ground truth Dec(Enc(M)) at each t: its
+    end-point errors against M. A denoiser without bias keeps them at the autoencoder's own error
+    (t = 0 row, ``t=None``) at small t; anything above is what the loop would add at every step."""
+    model = planner.model
+    enc = lambda m: model.ae.apply(model.ae_params, m, method="code")  # noqa: E731
+    dec = lambda z: model.ae.apply(model.ae_params, z, method="decode")  # noqa: E731
+    roundtrip, outs = [], {t: [] for t in ts}
+    for s in range(0, len(images), batch_size):
+        idx = np.arange(s, s + batch_size) % len(images)
+        take = min(batch_size, len(images) - s)
+        feats = planner.encode(images[idx])
+        m_t = dec(enc(jnp.asarray(gt[idx])))
+        roundtrip.append(np.asarray(m_t)[:take])
+        for t in ts:
+            m0 = model.den.apply(model.den_params, feats, m_t, jnp.float32(t), method="denoise")
+            outs[t].append(np.asarray(m0)[:take])
+    size = planner.image_size
+    rows = [{"t": None, "input": "Dec(Enc(M))", **summarise(end_errors(planner.camera, np.concatenate(roundtrip),
+                                                                        gt, size))}]
+    for t in ts:
+        rows.append({"t": t, "input": "Dec(Enc(M))", **summarise(end_errors(planner.camera, np.concatenate(outs[t]),
+                                                                          gt, size))})
+    return rows
+
+
 def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT_NS, seed: int = 0,
            batch_size: int = 50, progress=None) -> dict:
     """``splits``: name -> (images at the planner's size, ground-truth motions). Returns rows
     (split, N, errors), plus per-step drift and end-depth error along the largest N."""
     if not hasattr(planner.model, "set_refine_update"):
         raise ValueError(f"refine_report diagnoses READ's refinement; {planner.spec.get('method')} has none")
-    rows, loops = [], {}
+    rows, loops, clean = [], {}, {}
     n_max = max(ns)
     for split, (images, gt) in splits.items():
         for n in sorted(ns):
@@ -77,7 +108,8 @@ def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT
                 drift = np.abs(np.diff(hist, axis=0)).mean(axis=(1, 2, 3))  # (N - 1,)
                 depth = np.abs(hist[:, :, -1, 2] - gt[None, :, -1, 2]).mean(axis=1) * 1000  # (N,)
                 loops[split] = {"N": n, "drift_mean_abs": drift.tolist(), "end_depth_err_mm_mean": depth.tolist()}
-    return {"rows": rows, "loops": loops, "update": planner.model.configs["sde"].update}
+        clean[split] = clean_input_errors(planner, images, gt, batch_size=batch_size)
+    return {"rows": rows, "loops": loops, "clean_input": clean, "update": planner.model.configs["sde"].update}
 
 
 def format_report(result: dict) -> str:
@@ -88,6 +120,10 @@ def format_report(result: dict) -> str:
     for r in result["rows"]:
         lines.append(f"| {r['split']} | {r['N']} | {r['uv_px_median']:.2f} | {r['depth_mm_median']:.0f} | "
                      f"{r['err_cm_median']:.1f} | {100 * r['within_3cm']:.0f} % |")
+    for split, clean in result.get("clean_input", {}).items():
+        cells = "; ".join(f"{'autoencoder only' if r['t'] is None else 't = ' + format(r['t'], 'g')}: "
+                          f"{r['depth_mm_median']:.1f} mm / {r['err_cm_median']:.1f} cm" for r in clean)
+        lines.append(f"{split}, denoiser once on Dec(Enc(ground truth)), end depth / 3D error (median): {cells}")
     for split, loop in result["loops"].items():
         d = np.asarray(loop["end_depth_err_mm_mean"])
         marks = sorted({0, len(d) // 4, len(d) // 2, 3 * len(d) // 4, len(d) - 1})

@@ -78,6 +78,7 @@ def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
     assert train0["err_cm_median"] == 0 and train0["within_3cm"] == 1.0
     assert len(result["loops"]["test"]["drift_mean_abs"]) == 2
     assert len(result["loops"]["test"]["end_depth_err_mm_mean"]) == 3
+    assert [r["t"] for r in result["clean_input"]["train"]] == [None, 1.0, 0.5, 0.1, 0.01]
     assert "| train | 3 |" in capsys.readouterr().out
     assert _cli.run(refine_report_cli.main, argv + ["--N", "-1"]) == 2
 
