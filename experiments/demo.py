@@ -4,8 +4,10 @@ fixed test episodes and print the success table — sized for a laptop CPU (~10 
 Steps (each resumable; re-running skips what is done):
   1. expert demos for the task (batched MJX rollouts) + the fixed test episodes
   2. READ with the cpu preset, shortened (--steps for both stages)
-  3. evaluation: plans executed in MJX, with and without refinement (N = 0), success table,
-     an overlay of the plans on the input images and a video of rollouts
+  3. evaluation: plans executed in MJX, with and without refinement (N = 0), and the test
+     split's own expert motions replayed through the same path (it must read 100 %: the check
+     that the table measures what it says), success table, an overlay of the plans on the input
+     images and a video of rollouts
   4. the first frame of every task, in one picture
 
 examples:
@@ -65,6 +67,8 @@ def main(argv=None) -> None:
                                     videos=videos)
         r = evaluation.evaluate(planner, test, cfg, out_dir=run_dir / "eval", name=f"demo_N{n}")
         rows[name] = r["table"]
+    truth = evaluation.replay_ground_truth(planner.env, test)
+    rows["expert motions replayed (must be 100)"] = evaluation.success_table({task: truth["success_rate"]})
     print("[4/4] rendering the first frame of every task", flush=True)
     frames, labels = [], []
     for name in tasks.names():
