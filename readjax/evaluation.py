@@ -158,7 +158,8 @@ def replay_ground_truth(env, ds: Dataset, batch_size: int = 32) -> dict:
         "failed_seeds": ds.seeds[~success].tolist(), "seeds": ds.seeds.tolist(),
         "success": success.astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
-        "image_size": ds.image_size, "batch_size": batch_size,
+        "image_size": ds.image_size, "batch_size": batch_size, "format_version": ds.meta.get("format_version"),
+        "dataset_fingerprint": ds.fingerprint,
         "seconds": {"guard": round(t_guard, 2), "execution": round(time.time() - t0 - t_guard, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),
     }

@@ -81,7 +81,10 @@ def traces_to_motions(env, cam: cam_lib.CameraParams, q0: np.ndarray, trace) -> 
     p0, r0 = fk(env.chain, jnp.asarray(q0))
     pos = np.concatenate([np.asarray(p0)[:, None], np.asarray(trace.tcp_pos)], 1)
     rot = np.concatenate([np.asarray(r0)[:, None], np.asarray(trace.tcp_rot)], 1)
-    grip = np.concatenate([np.ones((len(q0), 1), np.float32), np.asarray(trace.grip)], 1)
+    # The gripper's commanded state (1 open, 0 closed), like RLBench's binary gripper_open, not the
+    # measured opening: around a wide object (put_rubbish's ball) the closed fingers stay 65 % open,
+    # which the evaluation protocol (open if grip > 0.5) would execute as "open".
+    grip = np.concatenate([np.ones((len(q0), 1), np.float32), np.asarray(trace.grip_cmd)], 1)
     joints = np.concatenate([np.asarray(q0)[:, None], np.asarray(trace.q)], 1)
     uvz = np.asarray(cam_lib.project_uvz(cam, jnp.asarray(pos)))
     r_cam = np.asarray(cam_lib.rotation_to_camera(cam, jnp.asarray(rot)))

@@ -14,7 +14,8 @@ A shard is written to a temporary name and renamed into place, so an interrupted
 only whole shards; resuming reads the attempted seeds back from them (no duplicates, nothing
 lost). Loading concatenates the shards in order.
 
-Format 2 stores each episode's scene beside its image, and evaluation executes that stored scene.
+Format 2 stores each episode's scene beside its image, and evaluation executes that stored scene;
+format 3 records the gripper's commanded state (1 open, 0 closed) in a motion's grip channel.
 Format-1 datasets are refused: their scenes could only be re-sampled from seeds, and before
 readjax.prng that re-sampling depended on the batch (two thirds of test episodes ran in a scene
 other than the one their image showed).
@@ -36,7 +37,9 @@ import jax
 from readjax.sim.camera import CameraParams
 from readjax.sim.env import Scene
 
-FORMAT_VERSION = 2  # 2: each episode's scene is stored (1 re-sampled it from the seed)
+# 3: a motion's grip is the commanded gripper state (2 recorded the measured opening, which reads
+#    "open" around wide grasped objects); 2: each episode's scene is stored (1 re-sampled it)
+FORMAT_VERSION = 3
 SHARD_GLOB = "shard_*.h5"
 
 
@@ -293,9 +296,11 @@ def check_format(path: Path, meta: dict) -> None:
     version = meta.get("format_version")
     if version == FORMAT_VERSION:
         return
-    why = ("it stores no scenes, and its scenes cannot be rebuilt from seeds (before format 2 a scene "
-           "depended on its generation batch)" if version == 1 else "this readjax reads format "
-           f"{FORMAT_VERSION}")
+    why = {1: "it stores no scenes, and its scenes cannot be rebuilt from seeds (before format 2 a scene "
+              "depended on its generation batch)",
+           2: "its motions record the measured gripper opening, which the evaluation executes as 'open' "
+              "around wide objects (format 3 records the commanded state)"}.get(
+        version, f"this readjax reads format {FORMAT_VERSION}")
     raise DatasetError(
         f"{path} is a format-{version} dataset: {why}; delete it and regenerate: python -m "
         f"experiments.generate --task {meta.get('task', 'TASK')} --split {meta.get('split', 'SPLIT')} "

@@ -35,6 +35,7 @@ class Trace(NamedTuple):
     tcp_rot: jax.Array  # (T, 3, 3)
     q: jax.Array  # (T, 7) measured arm joints
     grip: jax.Array  # (T,) measured gripper opening in [0, 1]
+    grip_cmd: jax.Array  # (T,) the gripper command of the step: 1 = open, 0 = closed (what a motion records)
     success: jax.Array  # (T,) success reached so far
     ik_error: jax.Array  # (T,) position error of the IK command against its target (m)
     ctrl: jax.Array  # (T, nu) actuator command applied during the step (replayable in C MuJoCo)
@@ -89,6 +90,7 @@ def rollout(env, state, plan: WaypointPlan, durations, ik_iterations: int = 3):
             tcp_rot=tr,
             q=q_meas,
             grip=grip_from_fingers(st.data.qpos[env.finger_qpos_adr]),
+            grip_cmd=(g_t > 0.5).astype(jnp.float32),
             success=st.success,
             ik_error=jnp.linalg.norm(p_cmd - p_t),
             ctrl=st.data.ctrl,
@@ -124,7 +126,7 @@ def rollout_joints(env, state, q_way: jax.Array, grip: jax.Array, durations):
         tp, tr = fk(env.chain, q_meas)
         rec = Trace(
             tcp_pos=tp, tcp_rot=tr, q=q_meas,
-            grip=grip_from_fingers(st.data.qpos[env.finger_qpos_adr]),
+            grip=grip_from_fingers(st.data.qpos[env.finger_qpos_adr]), grip_cmd=(g > 0.5).astype(jnp.float32),
             success=st.success, ik_error=jnp.zeros(()), ctrl=st.data.ctrl,
             attached=st.grasp.attached, rel_pos=st.grasp.rel_pos, rel_quat=st.grasp.rel_quat,
         )

@@ -80,6 +80,19 @@ def test_verify_fails_below_min_and_names_the_failed_seeds(data, capsys, tmp_pat
     assert "FAIL" in capsys.readouterr().err
 
 
+def test_a_wide_grasp_replays_as_closed(tmp_path):
+    """put_rubbish's ball keeps the closed fingers 65 % open: a motion records the gripper command
+    (1 open, 0 closed), not that opening, or the protocol (open if grip > 0.5) never grasps it.
+    Format 2 recorded the opening and replayed 0 of 100 test episodes."""
+    generate(GenerateConfig(task="put_rubbish", split="test", episodes=4, out=str(tmp_path), batch_size=4,
+                            image_size=32), progress=False)
+    ds = store.load_dataset(store.split_dir(tmp_path, "put_rubbish", "test"))
+    assert set(np.unique(ds.motion[..., 9]).round(6)) >= {0.0, 1.0}
+    from readjax.evaluation import replay_ground_truth
+
+    assert replay_ground_truth(tasks.make("put_rubbish"), ds)["success"] == [1, 1, 1, 1]
+
+
 def test_format_1_dataset_is_refused_in_one_line(data, tmp_path, capsys):
     old = tmp_path / TASK / "test"
     old.mkdir(parents=True)
@@ -96,3 +109,6 @@ def test_format_1_dataset_is_refused_in_one_line(data, tmp_path, capsys):
                      "--out", str(tmp_path), "--quiet"]) == 2
     assert "format-1" in capsys.readouterr().err
     assert json.loads((old / "meta.json").read_text())["format_version"] == 1
+    store.write_meta(old, dict(meta, format_version=2))
+    with pytest.raises(store.DatasetError, match="format-2 dataset: its motions record the measured gripper"):
+        store.load_dataset(old)
