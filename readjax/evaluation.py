@@ -1,9 +1,10 @@
 """Evaluation: plan for a test split, execute every plan in the episode's stored scene, tabulate.
 
-Two entry points share one execution path (:func:`run_plans`: the scene guard, then
-:func:`readjax.sim.execute.execute_motions`): :func:`evaluate` runs a planner's motions and
-:func:`replay_ground_truth` the split's own recorded motions, which must succeed 100 % -- the
-check that an evaluation measures what it says.
+Two entry points share one execution path -- the scene guard
+(:func:`readjax.data.guard.check_scene_images`), then :func:`readjax.sim.execute.execute_motions`
+in the stored scenes: :func:`evaluate` runs a planner's motions (the guard runs before planning,
+so a mismatch costs no planning time) and :func:`replay_ground_truth` the split's own recorded
+motions, which must succeed 100 % -- the check that an evaluation measures what it says.
 """
 
 from __future__ import annotations
