@@ -52,8 +52,7 @@ def main(argv=None) -> None:
     spec = read_run(args.run)
     root = args.data or spec["data_root"]
     planner = Planner.load(args.run, data_root=root)
-    if not hasattr(planner.model, "set_refine_update"):
-        raise ValueError(f"refine_report diagnoses READ's refinement; {args.run} is a {spec.get('method')} run")
+    refine_report.require_read(planner)
     if args.refine:
         planner.model.set_refine_update(args.refine)
     test = store.load_dataset(store.split_dir(root, spec["task"], "test"))

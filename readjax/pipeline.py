@@ -105,9 +105,14 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
             for extra in eval_args(method, cfg.read_N):
                 argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", str(data),
                         "--episodes", str(cfg.test_episodes), "--videos", "0", "--quiet"] + extra
+                entry = " ".join(argv[3:])  # the command without the interpreter: the ledger's key
+
+                def record(run=run, entry=entry):
+                    _ledger_add(run, entry)
+                    copy_results(run, results)
+
                 steps.append(Step("evaluate", task, f"evaluate {method} {' '.join(extra) or ''}".strip(), argv,
-                                  done=lambda run=run, argv=argv: _evaluated(run, argv),
-                                  after=lambda run=run: copy_results(run, results)))
+                                  done=lambda run=run, entry=entry: entry in _ledger(run), after=record))
     return steps
 
 
@@ -118,13 +123,15 @@ def _verified(path: Path, count: int) -> bool:
     return r.get("episodes", 0) >= count and r.get("success_rate") == 1.0
 
 
-def _evaluated(run: Path, argv: list[str]) -> bool:
-    """Done when this evaluation is in the run's ledger (``pipeline_evals.json``): the command picks
+def _ledger(run: Path) -> list[str]:
+    """The evaluations the pipeline ran on a run (``pipeline_evals.json``): the evaluate command picks
     its result's name from the trained model, so the pipeline records what it ran instead."""
-    ledger = run / "pipeline_evals.json"
-    if not ledger.exists():
-        return False
-    return " ".join(argv[3:]) in json.loads(ledger.read_text())
+    f = run / "pipeline_evals.json"
+    return json.loads(f.read_text()) if f.exists() else []
+
+
+def _ledger_add(run: Path, entry: str) -> None:
+    (run / "pipeline_evals.json").write_text(json.dumps(_ledger(run) + [entry], indent=1))
 
 
 def copy_results(run: Path, results: Path) -> None:
@@ -152,10 +159,6 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
         if proc.returncode != 0:
             raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
                                 f"re-run: finished steps are skipped")
-        if step.kind == "evaluate":
-            ledger = Path(step.argv[step.argv.index("--run") + 1]) / "pipeline_evals.json"
-            done = json.loads(ledger.read_text()) if ledger.exists() else []
-            ledger.write_text(json.dumps(done + [" ".join(step.argv[3:])], indent=1))
         step.after()
         if not step.done():
             raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "

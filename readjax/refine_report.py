@@ -84,12 +84,18 @@ def clean_input_errors(planner, images: np.ndarray, gt: np.ndarray, ts=CLEAN_TS,
     return rows
 
 
+def require_read(planner) -> None:
+    """refine_report diagnoses READ's refinement loop; other methods have none."""
+    if not hasattr(planner.model, "set_refine_update"):
+        raise ValueError(f"refine_report diagnoses READ's refinement; {planner.run_dir} is a "
+                         f"{planner.spec.get('method')} run")
+
+
 def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT_NS, seed: int = 0,
            batch_size: int = 50, progress=None) -> dict:
     """``splits``: name -> (images at the planner's size, ground-truth motions). Returns rows
     (split, N, errors), plus per-step drift and end-depth error along the largest N."""
-    if not hasattr(planner.model, "set_refine_update"):
-        raise ValueError(f"refine_report diagnoses READ's refinement; {planner.spec.get('method')} has none")
+    require_read(planner)
     rows, loops, clean = [], {}, {}
     n_max = max(ns)
     for split, (images, gt) in splits.items():
