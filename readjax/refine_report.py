@@ -48,7 +48,8 @@ def refine_history(planner, images: np.ndarray, key: jax.Array, n_steps: int, ba
         feats = planner.encode(images[idx])
         m_r = jnp.asarray(planner.database.motion[planner.retrieve(feats)])
         _, h = refine(model.ae, model.ae_params, model.den, model.den_params, feats, m_r,
-                      jax.random.fold_in(key, s), n_steps, model.configs["sde"], return_history=True)
+                      jax.random.fold_in(key, s), n_steps, model.configs["sde"], return_history=True,
+                      latent=model.latent)
         retrieved.append(np.asarray(m_r)[:take])
         hist.append(np.asarray(h)[:, :take])
     return np.concatenate(retrieved), np.concatenate(hist, axis=1)

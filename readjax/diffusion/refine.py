@@ -28,7 +28,9 @@ degradation of the answer at t = 1 (a(1) > 0). ``sde.update = "cold_anchor"`` re
 its first step sets z = D(Enc(M̂0), t_1) (the paper's first step without noise), the later steps
 are the cold update.
 
-Enc is the autoencoder's posterior mean. One jitted ``lax.scan`` over the N steps (N static),
+Enc is the autoencoder's posterior mean, standardised per dimension when the run's SDE uses
+``sde.latent_norm`` (``latent``: :mod:`readjax.diffusion.latent`; None = the paper's raw code,
+and Dec undoes the standardisation). One jitted ``lax.scan`` over the N steps (N static),
 batched over B; the image feature map F is computed once beforehand by
 ``Denoiser.encode_image`` and reused at every step. The modules are static arguments (Flax
 modules and configs hash by value); parameters, features, M_R and the key are traced.
@@ -43,6 +45,7 @@ import jax.numpy as jnp
 
 from readjax.config import SDEConfig
 from readjax.diffusion import irsde
+from readjax.diffusion.latent import LatentStats, codec
 from readjax.models.vae import check_motion_shape
 
 DEFAULT_T_END = 1e-3
@@ -55,7 +58,8 @@ def time_grid(n_steps: int, t_end: float = DEFAULT_T_END) -> jax.Array:
 
 @functools.partial(jax.jit, static_argnames=("ae", "denoiser", "n_steps", "sde", "t_end", "return_history"))
 def refine(ae, ae_params, denoiser, den_params, features: jax.Array, m_r: jax.Array, key: jax.Array,
-           n_steps: int, sde: SDEConfig, t_end: float = DEFAULT_T_END, return_history: bool = False):
+           n_steps: int, sde: SDEConfig, t_end: float = DEFAULT_T_END, return_history: bool = False,
+           latent: LatentStats | None = None):
     """Refine retrieved motions M_R (B, 101, 10) into M̂0 (B, 101, 10) with ``n_steps`` steps.
 
     Args:
@@ -68,6 +72,7 @@ def refine(ae, ae_params, denoiser, den_params, features: jax.Array, m_r: jax.Ar
       n_steps: N (static). 0 returns ``m_r`` unchanged.
       sde: the SDE the denoiser was trained with.
       return_history: also return every step's M̂0, shape (N, B, 101, 10).
+      latent: the run's latent statistics (``latent.for_run``); None = the raw code.
     """
     check_motion_shape(m_r, "m_r")
     if not isinstance(n_steps, int) or n_steps < 0:
@@ -81,12 +86,7 @@ def refine(ae, ae_params, denoiser, den_params, features: jax.Array, m_r: jax.Ar
         hist = jnp.zeros((0,) + m_r.shape, m_r.dtype)
         return (m_r, hist) if return_history else m_r
 
-    def enc(m):
-        return ae.apply(ae_params, m, method="code")
-
-    def dec(z):
-        return ae.apply(ae_params, z, method="decode")
-
+    enc, dec = codec(ae, ae_params, latent)
     ts = time_grid(n_steps, t_end)
     z_r = enc(m_r)
 

@@ -14,6 +14,7 @@ import numpy as np
 from readjax import retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde
+from readjax.diffusion import latent as latent_lib
 from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb
 from readjax.models.denoiser import Denoiser
@@ -62,20 +63,21 @@ def ae_loss(ae):
     return loss_fn
 
 
-def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict):
-    """M̂0 = D(I, Dec(z_t), t) with z_t from the latent IR-SDE marginal; per-key MSEs summed with
-    the autoencoder's key weights (METHOD.md sums them unweighted; our z is in metres, so an
+def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict, latent=None):
+    """M̂0 = D(I, Dec(z_t), t) with z_t from the latent IR-SDE marginal (on the standardised latent
+    with ``latent`` stats, :mod:`readjax.diffusion.latent`); per-key MSEs summed with the
+    autoencoder's key weights (METHOD.md sums them unweighted; our z is in metres, so an
     unweighted sum ignores depth errors of several centimetres)."""
+    enc, dec = latent_lib.codec(ae, ae_params, latent)
 
     def loss_fn(params, batch, rng):
         k_t, k_n, k_aug, k_drop = jax.random.split(rng, 4)
         image, m, m_r = batch["image"], batch["motion"], batch["retrieved"]
         if augment:
             image = augment_rgb(k_aug, image)
-        z0 = ae.apply(ae_params, m, method="code")
-        z_r = ae.apply(ae_params, m_r, method="code")
+        z0, z_r = enc(m), enc(m_r)
         t = irsde.sample_time(k_t, (m.shape[0],), sde)
-        m_t = ae.apply(ae_params, irsde.marginal_sample(k_n, z0, z_r, t, sde), method="decode")
+        m_t = dec(irsde.marginal_sample(k_n, z0, z_r, t, sde))
         pred = den.apply(params, image, m_t, t, train=True, rngs={"dropout": k_drop})
         per_key = {k: jnp.mean((pred[..., s] - m[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
         return sum(weights[k] * v for k, v in per_key.items()), per_key
@@ -109,6 +111,16 @@ def fit_autoencoder(run_dir: Path, ds, ae, key, train_cfg, cfg_dict: dict, progr
         init_ae(ae, key), ae_loss(ae), vae_batch, progress=progress, stop_at=stop_at)
 
 
+def fit_latent_stats(run_dir: Path, ae, ae_params, motions, sde):
+    """With ``sde.latent_norm``: measure the trained autoencoder's code statistics on the training
+    motions and record them in the run (READ and READ-L); else None (the raw code)."""
+    if not sde.latent_norm:
+        return None
+    stats = latent_lib.measure(ae, ae_params, motions)
+    latent_lib.write(run_dir, stats)
+    return stats
+
+
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
           stages=("vae", "read"), progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ for a task; each stage resumes from its latest checkpoint. Returns run.json."""
@@ -133,10 +145,11 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
     if "read" in stages:
         ae_params = base.stage_params(run_dir, "vae", vspec, init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
+        latent = fit_latent_stats(run_dir, ae, ae_params, ds.motion, configs["sde"])
         dspec = denoiser_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
         read_batch = base.paired_batch(ds, dspec, pairs)
-        loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights)
+        loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights, latent)
         Stage(run_dir, "read", dspec, cfg_dict, ds.fingerprint).fit(
             init_denoiser(den, image_size, k_den), loss, read_batch, progress=progress, stop_at=stop_at)
     return base.read_run(run_dir)
@@ -168,6 +181,7 @@ class ReadModel(common.DenoiserRunModel):
                                            vae_stage_config(cfg_dict), fp)
         self.den_params = base.stage_params(self.run_dir, "read", denoiser_spec(configs["train"]),
                                             init_denoiser(self.den, self.image_size, k_den), cfg_dict, fp)
+        self.latent = latent_lib.for_run(self.run_dir, configs["sde"])
         self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
 
     @classmethod
@@ -180,6 +194,8 @@ class ReadModel(common.DenoiserRunModel):
         self.ae, self.den = build_modules(configs, tasks.make(task).chain, camera)
         k_ae, k_den = jax.random.split(key)
         self.ae_params, self.den_params = init_ae(self.ae, k_ae), init_denoiser(self.den, self.image_size, k_den)
+        self.latent = (latent_lib.LatentStats.identity(configs["vae"].latent_dim)
+                       if configs["sde"].latent_norm else None)
         self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
         return self
 
@@ -192,7 +208,7 @@ class ReadModel(common.DenoiserRunModel):
         from readjax.diffusion.refine import refine
 
         return refine(self.ae, self.ae_params, self.den, self.den_params, features, jnp.asarray(m_r), key,
-                      int(n_steps), self.configs["sde"])
+                      int(n_steps), self.configs["sde"], latent=self.latent)
 
 
 @partial(jax.jit, static_argnums=(0,))

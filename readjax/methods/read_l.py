@@ -25,6 +25,7 @@ from readjax import retrieval, tasks
 from readjax.config import SDEConfig
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde, taskspace
+from readjax.diffusion import latent as latent_lib
 from readjax.methods import base, common
 from readjax.methods import read as read_lib
 from readjax.methods.augment import augment_rgb
@@ -48,10 +49,11 @@ def init_latent_denoiser(lden: LatentDenoiser, image_size: int, key):
                      jnp.zeros((1, lden.latent_dim)), jnp.zeros((1, motion_lib.FRAMES, 2)), jnp.zeros((1,)))
 
 
-def read_l_loss(ae, lden: LatentDenoiser, sde: SDEConfig, augment: bool):
+def read_l_loss(ae, lden: LatentDenoiser, sde: SDEConfig, augment: bool, latent=None):
     """MSE(ẑ0, z0) over the latent dims. ``params`` = {"denoiser": trained, "ae": frozen}: the frozen
     autoencoder rides in the train state under ``stop_gradient`` (zero gradients, so Adam leaves it
-    exactly unchanged) — an argument of the jitted step, not a constant baked into it."""
+    exactly unchanged) — an argument of the jitted step, not a constant baked into it. With
+    ``latent`` stats the latents are standardised (:mod:`readjax.diffusion.latent`)."""
 
     def loss_fn(params, batch, rng):
         ae_params = jax.lax.stop_gradient(params["ae"])
@@ -59,11 +61,11 @@ def read_l_loss(ae, lden: LatentDenoiser, sde: SDEConfig, augment: bool):
         image, m, m_r = batch["image"], batch["motion"], batch["retrieved"]
         if augment:
             image = augment_rgb(k_aug, image)
-        z0 = ae.apply(ae_params, m, method="code")
-        z_r = ae.apply(ae_params, m_r, method="code")
+        enc, dec = latent_lib.codec(ae, ae_params, latent)
+        z0, z_r = enc(m), enc(m_r)
         t = irsde.sample_time(k_t, (m.shape[0],), sde)
         z_t = irsde.marginal_sample(k_n, z0, z_r, t, sde)
-        uv = motion_lib.uv(ae.apply(ae_params, z_t, method="decode"))
+        uv = motion_lib.uv(dec(z_t))
         pred = lden.apply(params["denoiser"], image, z_t, uv, t, train=True, rngs={"dropout": k_drop})
         mse = jnp.mean((pred - z0) ** 2)
         return mse, {"latent_mse": mse}
@@ -87,32 +89,32 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         read_lib.fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
     if "read_l" in stages:
         ae_params = base.stage_params(run_dir, "vae", vspec, read_lib.init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
+        latent = read_lib.fit_latent_stats(run_dir, ae, ae_params, ds.motion, configs["sde"])
         spec = read_lib.denoiser_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
         batch = base.paired_batch(ds, spec, pairs)
         params = {"denoiser": init_latent_denoiser(lden, image_size, k_den), "ae": ae_params}
         Stage(run_dir, "read_l", spec, cfg_dict, ds.fingerprint).fit(
-            params, read_l_loss(ae, lden, configs["sde"], train_cfg.augment), batch, progress=progress,
+            params, read_l_loss(ae, lden, configs["sde"], train_cfg.augment, latent), batch, progress=progress,
             stop_at=stop_at)
     return base.read_run(run_dir)
 
 
 @functools.partial(jax.jit, static_argnames=("ae", "lden", "n_steps", "sde", "t_end", "return_history"))
 def refine(ae, ae_params, lden: LatentDenoiser, lden_params, features, m_r, key, n_steps: int, sde: SDEConfig,
-           t_end: float = taskspace.DEFAULT_T_END, return_history: bool = False):
+           t_end: float = taskspace.DEFAULT_T_END, return_history: bool = False, latent=None):
     """READ-L's latent cold diffusion from Enc(M_R); returns Dec(last ẑ0) (and every step's decoded
-    ẑ0 with ``return_history``). N = 0 returns M_R."""
+    ẑ0 with ``return_history``). N = 0 returns M_R. ``latent``: the run's latent statistics."""
     if n_steps == 0:
         hist = jnp.zeros((0,) + m_r.shape, m_r.dtype)
         return (m_r, hist) if return_history else m_r
 
-    def dec(z):
-        return ae.apply(ae_params, z, method="decode")
+    enc, dec = latent_lib.codec(ae, ae_params, latent)
 
     def x0_fn(z, t):
         return lden.apply(lden_params, features, z, motion_lib.uv(dec(z)), t, method="denoise")
 
-    z_r = ae.apply(ae_params, m_r, method="code")
+    z_r = enc(m_r)
     _, hist = taskspace.cold_diffusion(x0_fn, key, z_r, sde, n_steps, t_end, return_history=True)
     if return_history:
         return dec(hist[-1]), jax.vmap(dec)(hist)
@@ -136,6 +138,7 @@ class ReadLModel(common.DenoiserRunModel):
         params = base.stage_params(self.run_dir, "read_l", read_lib.denoiser_spec(train_cfg), template,
                                    self.cfg_dict, self.fingerprint)
         self.den_params, self.ae_params = params["denoiser"], params["ae"]
+        self.latent = latent_lib.for_run(self.run_dir, self.configs["sde"])
         self._setup_encoder()
 
     def generate(self, features, m_r, key, n_steps: int = 100) -> jax.Array:
@@ -144,4 +147,4 @@ class ReadLModel(common.DenoiserRunModel):
         if n == 0:
             return m_r
         return refine(self.ae, self.ae_params, self.den, self.den_params, features, m_r, key, n,
-                      self.configs["sde"])
+                      self.configs["sde"], latent=self.latent)

@@ -56,6 +56,10 @@ def test_train_and_plan(data, name):
     for stage in stages:
         rows = [json.loads(ln) for ln in (run_dir / stage / "metrics.jsonl").read_text().splitlines()]
         assert rows[-1]["step"] == 4 and np.isfinite(rows[-1]["loss"])
+    if method in ("read", "read_l"):  # the preset's SDE runs on the standardised latent
+        assert spec["configs"]["sde"]["latent_norm"]
+        stats = json.loads((run_dir / "latent_stats.json").read_text())
+        assert len(stats["mean"]) == len(stats["std"]) == 16 and min(stats["std"]) >= stats["std_floor"]
 
     planner = Planner.load(run_dir)
     rgbd = planner.database.rgbd[:2]
