@@ -106,7 +106,7 @@ def bench_planner(args) -> dict:
 
     from readjax import provenance, tasks
     from readjax.data.store import Dataset
-    from readjax.methods import base
+    from readjax import config
     from readjax.methods.read import ReadModel
     from readjax.planner import Planner
     from readjax.sim.camera import camera_from_model
@@ -114,7 +114,7 @@ def bench_planner(args) -> dict:
     env = tasks.make("reach_target")
     results = {"versions": provenance.versions(), "machine": provenance.machine(), "cells": []}
     for preset in args.presets:
-        configs = base.presets(preset)
+        configs = config.presets(preset)
         size = configs["denoiser"].image_size
         cam = camera_from_model(env.mj_model, "front", size, size)
         model = ReadModel.random("reach_target", configs, cam, jax.random.key(0))
@@ -160,6 +160,8 @@ def bench_planner(args) -> dict:
 
 
 def parser() -> argparse.ArgumentParser:
+    from readjax import config
+
     p = argparse.ArgumentParser(prog="python -m experiments.bench", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
     sub = p.add_subparsers(dest="what", required=True)
@@ -170,7 +172,8 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--c-episodes", type=_cli.positive_int, default=8, help="episodes replayed in C MuJoCo")
     s.add_argument("--out", default="runs/bench/sim.json")
     pl = sub.add_parser("planner", help="planner latency (READ)", formatter_class=_cli.HelpFormatter)
-    pl.add_argument("--presets", nargs="+", default=["cpu", "paper"], choices=["cpu", "paper"])
+    presets = sorted(config.preset_names())
+    pl.add_argument("--presets", nargs="+", default=list(presets), choices=presets)
     pl.add_argument("--batch-sizes", nargs="+", type=_cli.positive_int, default=[1, 64])
     pl.add_argument("--N", nargs="+", type=int, default=[1, 10, 100], help="refinement steps")
     pl.add_argument("--database", type=_cli.positive_int, default=200, help="retrieval database size")

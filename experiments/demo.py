@@ -38,10 +38,10 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax import evaluation, tasks
+    from readjax import config, evaluation, tasks
     from readjax.data import store
     from readjax.data.generate import GenerateConfig, generate
-    from readjax.methods import base, read
+    from readjax.methods import read
     from readjax.planner import Planner
     from readjax.viz import first_frame, label_grid
 
@@ -54,8 +54,8 @@ def main(argv=None) -> None:
         print(f"      {split}: kept {s['episodes_kept']}/{s['episodes_attempted']} "
               f"(expert success {100 * s['expert_success_rate']:.0f}%)", flush=True)
     print(f"[2/4] training READ (cpu preset, {args.steps} steps per stage)", flush=True)
-    configs = base.override(base.presets("cpu"), [f"vae_steps={args.steps}", f"steps={args.steps}",
-                                                  f"ckpt_every={max(args.steps // 2, 1)}"])
+    configs = config.override(config.presets("cpu"), [f"vae_steps={args.steps}", f"steps={args.steps}",
+                                                      f"ckpt_every={max(args.steps // 2, 1)}"])
     run_dir = out / "runs" / task / "read"
     read.train(task, data, run_dir, configs, "cpu")
     print(f"[3/4] evaluating on {args.test_episodes} fixed test episodes", flush=True)

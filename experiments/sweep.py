@@ -18,14 +18,14 @@ from experiments import _cli
 
 
 def parser() -> argparse.ArgumentParser:
-    from readjax import methods
+    from readjax import config, methods
 
     p = argparse.ArgumentParser(prog="python -m experiments.sweep", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--task", required=True)
     p.add_argument("--grid", nargs="+", required=True, metavar="KEY=v1,v2", help="N, K, L and/or T values")
     p.add_argument("--model", default="read", choices=methods.names())
-    p.add_argument("--preset", default="cpu", choices=("cpu", "paper"))
+    p.add_argument("--preset", default="cpu", choices=sorted(config.preset_names()))
     p.add_argument("--data", default="data")
     p.add_argument("--out", default="runs")
     p.add_argument("--name", default="sweep", help="sweep folder name under OUT/<task>/")

@@ -26,13 +26,13 @@ from pathlib import Path
 from experiments import _cli
 
 def parser() -> argparse.ArgumentParser:
-    from readjax import methods
+    from readjax import config, methods
 
     p = argparse.ArgumentParser(prog="python -m experiments.train", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--task", required=True, help="task name or paper code")
     p.add_argument("--model", default="read", choices=methods.names(), help="method to train")
-    p.add_argument("--preset", default="cpu", choices=("cpu", "paper"),
+    p.add_argument("--preset", default="cpu", choices=sorted(config.preset_names()),
                    help="cpu: minutes on 2 cores; paper: the paper's sizes (GPU)")
     p.add_argument("--data", default="data", help="dataset root (DATA/<task>/train from experiments.generate)")
     p.add_argument("--out", default="runs", help="runs root; the run goes to OUT/<task>/<name>")
@@ -47,11 +47,10 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax import methods, tasks
-    from readjax.methods import base
+    from readjax import config, methods, tasks
 
     task = tasks.canonical_name(args.task)
-    configs = base.override(base.presets(args.preset), args.set)
+    configs = config.override(config.presets(args.preset), args.set)
     run_dir = Path(args.out) / task / (args.name or args.model)
     if args.restart and run_dir.exists():
         shutil.rmtree(run_dir)

@@ -22,8 +22,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from readjax import config, tasks
 from readjax import geometry as geo
-from readjax import tasks
 from readjax.data import motion as motion_lib
 from readjax.sim.ik import IKParams, pose_error, solve_ik
 from readjax.sim.kinematics import HOME_Q, ArmChain
@@ -90,7 +90,7 @@ def load_autoencoder(run_dir: str | Path):
     spec = base.read_run(run_dir)
     if "vae" not in spec["configs"]:
         raise ValueError(f"run {run_dir} (method {spec['method']!r}) has no autoencoder")
-    configs = base.configs_from_dict(spec["configs"])
+    configs = config.configs_from_dict(spec["configs"])
     camera = CameraParams.from_dict(spec["camera"])
     ae = make_autoencoder(configs["vae"], chain=tasks.make(spec["task"]).chain, camera=camera)
     k_ae, _ = jax.random.split(jax.random.key(configs["train"].seed))

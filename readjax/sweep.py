@@ -16,8 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from readjax import methods, tasks
-from readjax.methods import base
+from readjax import config, methods, tasks
 
 TEST_TIME = ("N",)
 TRAIN_KEYS = {"K": "train.K", "L": "sde.lam", "T": "sde.theta1"}
@@ -90,7 +89,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         run_name = "_".join(f"{k}{_label(v)}" for k, v in values.items()) or "default"
         run_dir = sweep_dir / run_name
         overrides = list(cfg.sets) + [f"{TRAIN_KEYS[k]}={v}" for k, v in values.items()]
-        configs = base.override(base.presets(cfg.preset), overrides)
+        configs = config.override(config.presets(cfg.preset), overrides)
         if shared_vae is not None and "vae" in methods.stages(cfg.model) and not (run_dir / "vae").exists():
             run_dir.mkdir(parents=True, exist_ok=True)
             shutil.copytree(shared_vae, run_dir / "vae")  # the autoencoder ignores K, L, T

@@ -9,6 +9,7 @@ resumed from its latest checkpoint sees exactly the batches an uninterrupted run
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import time
@@ -24,16 +25,12 @@ import orbax.checkpoint as ocp
 from flax import struct
 
 from readjax import provenance, sharding
+from readjax.config import SECTIONS, TrainConfig
 
 
 def _field_default(section: str, name: str):
     """The dataclass default of a config field (``missing`` if unknown)."""
-    import dataclasses
-
-    from readjax import config as cfg_lib
-    from readjax.methods.base import TrainConfig
-
-    cls = TrainConfig if section == "train" else cfg_lib.SECTIONS.get(section)
+    cls = TrainConfig if section == "train" else SECTIONS.get(section)
     fields = {f.name: f for f in dataclasses.fields(cls)} if cls is not None else {}
     if name not in fields or fields[name].default is dataclasses.MISSING:
         return _MISSING

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from readjax import retrieval, tasks
+from readjax import config, retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.methods import base
 from readjax.training import CheckpointError
@@ -96,7 +96,7 @@ def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: s
     task = tasks.canonical_name(task)
     run_dir = Path(run_dir)
     ds = base.load_train_data(data_root, task, configs["train"], image_size)
-    cfg_dict = base.configs_to_dict(configs, sections)
+    cfg_dict = config.configs_to_dict(configs, sections)
     spec = {"method": method, "task": task, "preset": preset, "configs": cfg_dict,
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
             "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
@@ -132,7 +132,7 @@ class RunModel:
 
         self.run_dir = Path(run_dir)
         self.spec = base.read_run(self.run_dir)
-        self.configs = base.configs_from_dict(self.spec["configs"])
+        self.configs = config.configs_from_dict(self.spec["configs"])
         self.cfg_dict = self.spec["configs"]
         self.camera = CameraParams.from_dict(self.spec["camera"])
         self.image_size = int(self.spec["image_size"])

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from readjax import retrieval, tasks
+from readjax import config, retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde
 from readjax.diffusion import latent as latent_lib
@@ -132,7 +132,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     configs = with_motion_stats(configs, ds.motion)
     env = tasks.make(task)
     ae, den = build_modules(configs, env.chain, ds.camera)
-    cfg_dict = base.configs_to_dict(configs)
+    cfg_dict = config.configs_to_dict(configs)
     spec = {"method": "read", "task": task, "preset": preset, "configs": cfg_dict,
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
             "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
@@ -169,13 +169,13 @@ class ReadModel(common.DenoiserRunModel):
 
         self.run_dir = Path(run_dir)
         self.spec = base.read_run(self.run_dir)
-        self.configs = configs = base.configs_from_dict(self.spec["configs"])
+        self.configs = configs = config.configs_from_dict(self.spec["configs"])
         self.camera = CameraParams.from_dict(self.spec["camera"])
         self.image_size = int(self.spec["image_size"])
         env = tasks.make(self.spec["task"])
         self.ae, self.den = build_modules(configs, env.chain, self.camera)
         k_ae, k_den = jax.random.split(jax.random.key(configs["train"].seed))
-        cfg_dict = base.configs_to_dict(configs)
+        cfg_dict = config.configs_to_dict(configs)
         fp = self.spec["dataset_fingerprint"]
         self.ae_params = base.stage_params(self.run_dir, "vae", vae_spec(configs["train"]), init_ae(self.ae, k_ae),
                                            vae_stage_config(cfg_dict), fp)

@@ -9,7 +9,6 @@ import pytest
 
 from readjax import config
 from readjax import methods
-from readjax.methods import base
 
 
 def test_registry():
@@ -27,28 +26,28 @@ def test_registry():
 
 def test_read_runs_record_only_reads_sections():
     for preset in ("cpu", "paper"):
-        d = base.configs_to_dict(base.presets(preset))
+        d = config.configs_to_dict(config.presets(preset))
         assert set(d) == {"vae", "denoiser", "sde", "train"}
-    d = base.configs_to_dict(base.presets("cpu"), ("denoiser", "vpsde"))
+    d = config.configs_to_dict(config.presets("cpu"), ("denoiser", "vpsde"))
     assert set(d) == {"denoiser", "vpsde", "train"}
-    back = base.configs_from_dict(json.loads(json.dumps(d)))
-    assert back["vpsde"] == base.presets("cpu")["vpsde"]
+    back = config.configs_from_dict(json.loads(json.dumps(d)))
+    assert back["vpsde"] == config.presets("cpu")["vpsde"]
     with pytest.raises(ValueError, match="no section"):
-        base.configs_to_dict({"train": base.TrainConfig()}, ("resnet",))
+        config.configs_to_dict({"train": config.TrainConfig()}, ("resnet",))
 
 
 def test_new_fields_are_settable():
-    c = base.override(base.presets("cpu"), ["beta_max=10", "vpsde.sampler=sde", "read_o.sampler=em", "proj_dim=32",
-                                            "resnet.stage_blocks=1,1,1,1", "guidance=2", "steps=7"])
+    c = config.override(config.presets("cpu"), ["beta_max=10", "vpsde.sampler=sde", "read_o.sampler=em", "proj_dim=32",
+                                                "resnet.stage_blocks=1,1,1,1", "guidance=2", "steps=7"])
     assert c["vpsde"].beta_max == 10 and c["vpsde"].sampler == "sde" and c["vpsde"].guidance == 2.0
     assert c["read_o"].sampler == "em" and c["resnet"].proj_dim == 32 and c["resnet"].stage_blocks == (1, 1, 1, 1)
     assert c["train"].steps == 7
     # names that existed before keep working bare; the new shared name needs its section
-    assert base.override(base.presets("cpu"), ["latent_dim=16", "drop_path=0"])["vae"].latent_dim == 16
+    assert config.override(config.presets("cpu"), ["latent_dim=16", "drop_path=0"])["vae"].latent_dim == 16
     with pytest.raises(ValueError, match="ambiguous"):
-        base.override(base.presets("cpu"), ["sampler=em"])
+        config.override(config.presets("cpu"), ["sampler=em"])
     with pytest.raises(ValueError):
-        base.override(base.presets("cpu"), ["vpsde.sampler=heun"])
+        config.override(config.presets("cpu"), ["vpsde.sampler=heun"])
     assert config.preset("cpu")["resnet"].input_size == config.preset("cpu")["denoiser"].image_size
     hash(tuple(config.preset("paper").values()))
     assert dataclasses.replace(config.ReadOConfig(), sampler="em").sampler == "em"

@@ -42,6 +42,24 @@ def test_override():
             config.override(config.preset("cpu"), [bad])
 
 
+def test_override_train():
+    """With a ``train`` section (``presets``), train.* keys and bare train field names no model section
+    has set it; without one, such keys are left to the model sections (and rejected there)."""
+    cfgs = config.override(config.presets("cpu"), ["train.steps=5", "K=4", "augment=no", "lr=1e-3", "vae.width=64"])
+    assert (cfgs["train"].steps, cfgs["train"].K, cfgs["train"].augment, cfgs["train"].lr) == (5, 4, False, 1e-3)
+    assert cfgs["vae"].width == 64 and config.presets("cpu")["train"].steps == 3000
+    assert set(config.presets("paper")) == set(config.SECTIONS) | {"train"}
+    for bad, match in [("train.foo=1", "TrainConfig has no field"), ("episodes=x", "expected int"),
+                       ("augment= true", "boolean"), ("train.K=0", "positive"), ("steps", "key=value")]:
+        with pytest.raises(ValueError, match=match):
+            config.override(config.presets("cpu"), [bad])
+    for bad, match in [("train.steps=5", "unknown config section 'train'"), ("steps=5", "unknown config field")]:
+        with pytest.raises(ValueError, match=match):
+            config.override(config.preset("cpu"), [bad])
+    with pytest.raises(ValueError, match="unknown preset"):
+        config.presets("tpu")
+
+
 def test_json_round_trip():
     cfgs = config.preset("paper")
     back = config.from_dict(json.loads(json.dumps(config.to_dict(cfgs))))

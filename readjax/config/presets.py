@@ -1,0 +1,68 @@
+"""The sections a preset holds (``SECTIONS``) and the two presets: ``"paper"`` (the paper's
+sizes, meant for a GPU) and ``"cpu"`` (small enough for a 2-core CPU: a batch-32 train step well
+under 0.3 s). :func:`preset` gives a preset's model sections, :func:`presets` those and its
+training section (``train``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from readjax.config.baselines import ReadOConfig, ResNetConfig, VPSDEConfig
+from readjax.config.sections import DenoiserConfig, SDEConfig, TrainConfig, VAEConfig
+
+SECTIONS = {"vae": VAEConfig, "denoiser": DenoiserConfig, "sde": SDEConfig,
+            "resnet": ResNetConfig, "vpsde": VPSDEConfig, "read_o": ReadOConfig}
+# Sections only some methods use (baselines, variants); READ's runs record only the others.
+METHOD_SECTIONS = ("resnet", "vpsde", "read_o")
+
+_PRESETS: dict[str, dict[str, Any]] = {
+    "paper": {
+        "vae": VAEConfig(),
+        "denoiser": DenoiserConfig(),
+        "sde": SDEConfig(latent_norm=True),
+        "resnet": ResNetConfig(),
+        "vpsde": VPSDEConfig(),
+        "read_o": ReadOConfig(),
+    },
+    "cpu": {
+        "vae": VAEConfig(width=32, layers=2, heads=4, ffn=128, latent_dim=32),
+        # No ConvNeXt blocks at the 1/4-resolution level (it is patchify conv + skip only) and a
+        # 2-layer, 2-head transformer: on a busy 2-core CPU a batch-32 READ step measured ~0.4
+        # CPU-seconds; blocks at 1/4 resolution and 4 heads each added 0.05-0.1 s (see the report).
+        "denoiser": DenoiserConfig(image_size=64, conv_dims=(16, 32, 64, 128), enc_depths=(0, 1, 1, 1),
+                                   dec_depths=(0, 1, 1), drop_path=0.1, feature_channels=64, d_model=64,
+                                   layers=2, heads=2, ffn=128),
+        "sde": SDEConfig(latent_norm=True),
+        # ResNet18 with a quarter of the channels at 64 px: a batch-32 step measured ~0.13 s here.
+        "resnet": ResNetConfig(input_size=64, stage_widths=(16, 32, 64, 128), stage_blocks=(2, 2, 2, 2),
+                               norm_groups=8, proj_dim=64, head_hidden=256),
+        "vpsde": VPSDEConfig(),
+        "read_o": ReadOConfig(),
+    },
+}
+
+TRAIN_PRESETS = {
+    "paper": TrainConfig(),
+    "cpu": TrainConfig(vae_steps=3000, vae_batch=32, vae_lr=1e-3, steps=3000, batch=32, lr=3e-4,
+                       lr_decay=0.5, lr_decay_every=1500, ckpt_every=500, log_every=25),
+}
+
+
+def preset_names() -> tuple[str, ...]:
+    return tuple(_PRESETS)
+
+
+def preset(name: str) -> dict[str, Any]:
+    """``{"vae": VAEConfig, "denoiser": DenoiserConfig, "sde": SDEConfig, ...}`` of a named preset
+    (every section of ``SECTIONS``)."""
+    if name not in _PRESETS:
+        raise ValueError(f"unknown preset {name!r}; known: {', '.join(_PRESETS)}")
+    return dict(_PRESETS[name])
+
+
+def presets(name: str) -> dict[str, Any]:
+    """All configs of a preset: vae, denoiser, sde (READ), resnet, vpsde, read_o (baselines and
+    variants, ``config.METHOD_SECTIONS``) and train."""
+    if name not in TRAIN_PRESETS:
+        raise ValueError(f"unknown preset {name!r}; known: {', '.join(TRAIN_PRESETS)}")
+    return dict(preset(name), train=TRAIN_PRESETS[name])
