@@ -104,9 +104,9 @@ def bench_planner(args) -> dict:
     import jax
     import numpy as np
 
-    from readjax import provenance, tasks
+    from readjax import config, provenance, tasks
+    from readjax.data import motion as motion_lib
     from readjax.data.store import Dataset
-    from readjax import config
     from readjax.methods.read import ReadModel
     from readjax.planner import Planner
     from readjax.sim.camera import camera_from_model
@@ -120,15 +120,13 @@ def bench_planner(args) -> dict:
         model = ReadModel.random("reach_target", configs, cam, jax.random.key(0))
         rng = np.random.default_rng(0)
         n_db = args.database
-        from readjax.data import motion as mo
-
-        t = np.linspace(0, 1, mo.FRAMES)[None, :, None]
+        t = np.linspace(0, 1, motion_lib.FRAMES)[None, :, None]
         pos = rng.uniform([0.3, -0.3, 0.1], [0.7, 0.3, 0.5], (n_db, 1, 3)) * t + (1 - t) * np.array([0.31, 0, 0.49])
-        rot = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (n_db, mo.FRAMES, 3, 3))
-        motions = np.asarray(mo.encode(cam, pos.astype(np.float32), rot.astype(np.float32),
-                                       np.ones((n_db, mo.FRAMES), np.float32)))
+        rot = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (n_db, motion_lib.FRAMES, 3, 3))
+        motions = np.asarray(motion_lib.encode(cam, pos.astype(np.float32), rot.astype(np.float32),
+                                               np.ones((n_db, motion_lib.FRAMES), np.float32)))
         db = Dataset("reach_target", "train", cam, rng.uniform(size=(n_db, size, size, 4)).astype(np.float32),
-                     motions, np.zeros((n_db, mo.FRAMES, 7), np.float32), np.arange(n_db))
+                     motions, np.zeros((n_db, motion_lib.FRAMES, 7), np.float32), np.arange(n_db))
         t0 = time.perf_counter()
         planner = Planner(model, db)
         setup = time.perf_counter() - t0

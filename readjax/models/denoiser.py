@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import flax.linen as nn
 
 from readjax.config import DenoiserConfig
-from readjax.data import motion as mo
+from readjax.data import motion as motion_lib
 from readjax.models.convnext_unet import HEAD_STRIDE, ConvNeXtUNet, bilinear_axis
 from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR
 from readjax.models.vae import (KEY_DIMS, MLP, EncoderLayer, check_motion_shape, embed_mlp,
@@ -144,7 +144,7 @@ class Denoiser(nn.Module):
         x = sample_features(pix.reshape(b, hs * s, ws * s, k), uv)
         depth = DEPTH_NEAR + (DEPTH_FAR - DEPTH_NEAR) * x[..., 3:4]
         if c.motion_std:
-            z = mo.KEYS["z"].start
+            z = motion_lib.KEYS["z"].start
             depth = (depth - c.motion_mean[z]) / c.motion_std[z]
         return jnp.concatenate([x[..., :3] - 0.5, depth, x[..., 4:]], axis=-1)
 
@@ -172,17 +172,17 @@ class Denoiser(nn.Module):
             mean, std = 0.0, 1.0
         motion_tok = self.motion_embed((motion_t - mean) / std)
         time_tok = self.time_embed(time_features(t, d))[:, None, :]
-        seq = jnp.concatenate([motion_tok, time_tok], axis=1) + sinusoidal_positions(mo.FRAMES + 1, d)
+        seq = jnp.concatenate([motion_tok, time_tok], axis=1) + sinusoidal_positions(motion_lib.FRAMES + 1, d)
         if uv is None:
-            uv = mo.uv(motion_t)
-        elif uv.shape != (b, mo.FRAMES, 2):
-            raise ValueError(f"uv must have shape ({b}, {mo.FRAMES}, 2), got {uv.shape}")
+            uv = motion_lib.uv(motion_t)
+        elif uv.shape != (b, motion_lib.FRAMES, 2):
+            raise ValueError(f"uv must have shape ({b}, {motion_lib.FRAMES}, 2), got {uv.shape}")
         img = self.image_tokens(features, uv)
         if self.image_proj is not None:
             img = self.image_proj(img)
         if c.input_skip:
             img = img + self.input_embed(self.input_at(features, uv))
-        tokens = [seq, img + sinusoidal_positions(mo.FRAMES, d)]
+        tokens = [seq, img + sinusoidal_positions(motion_lib.FRAMES, d)]
 
         mask = None
         if self.use_cond:
@@ -192,14 +192,14 @@ class Denoiser(nn.Module):
             check_motion_shape(cond, "cond")
             if cond.shape[0] != b:
                 raise ValueError(f"cond must have batch size {b}, got {cond.shape[0]}")
-            tokens.append(self.cond_embed((cond - mean) / std) + sinusoidal_positions(mo.FRAMES, d))
+            tokens.append(self.cond_embed((cond - mean) / std) + sinusoidal_positions(motion_lib.FRAMES, d))
             if cond_keep is not None:
                 cond_keep = jnp.asarray(cond_keep, bool)
                 if cond_keep.shape != (b,):
                     raise ValueError(f"cond_keep must have shape ({b},), got {cond_keep.shape}")
-                n_other = 2 * mo.FRAMES + 1
+                n_other = 2 * motion_lib.FRAMES + 1
                 keys = jnp.concatenate([jnp.ones((b, n_other), bool),
-                                        jnp.broadcast_to(cond_keep[:, None], (b, mo.FRAMES))], axis=1)
+                                        jnp.broadcast_to(cond_keep[:, None], (b, motion_lib.FRAMES))], axis=1)
                 mask = keys[:, None, None, :]  # (B, heads: broadcast, queries: broadcast, keys)
         elif cond is not None or cond_keep is not None:
             raise ValueError("this Denoiser was built with use_cond=False; it takes no cond tokens")
@@ -207,6 +207,6 @@ class Denoiser(nn.Module):
         x = jnp.concatenate(tokens, axis=1)
         for layer in self.layers:
             x = layer(x, mask)
-        h = x[:, : mo.FRAMES]
-        out = mo.join_keys({k: self.heads[k](h) for k in mo.KEYS})
+        h = x[:, : motion_lib.FRAMES]
+        out = motion_lib.join_keys({k: self.heads[k](h) for k in motion_lib.KEYS})
         return motion_t + out * std if self.output == "delta" else out

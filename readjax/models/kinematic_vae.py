@@ -30,7 +30,7 @@ import numpy as np
 
 from readjax import geometry as geo
 from readjax.config import VAEConfig
-from readjax.data import motion as mo
+from readjax.data import motion as motion_lib
 from readjax.models.vae import (MLP, LatentDecoderBody, MotionEncoder, MotionVAE, _batch_motion,
                                 kl_divergence, weighted_motion_loss)
 from readjax.sim import camera as cam_lib
@@ -67,8 +67,9 @@ class KinematicConstants:
             raise ValueError(f"chain must be an ArmChain, got {type(self.chain).__name__}")
         if not isinstance(self.camera, CameraParams):
             raise ValueError(f"camera must be a CameraParams, got {type(self.camera).__name__}")
-        if np.shape(self.chain.lower) != (mo.JOINTS,):
-            raise ValueError(f"chain must have {mo.JOINTS} joints, got limits {np.shape(self.chain.lower)}")
+        if np.shape(self.chain.lower) != (motion_lib.JOINTS,):
+            raise ValueError(f"chain must have {motion_lib.JOINTS} joints, got limits "
+                             f"{np.shape(self.chain.lower)}")
         object.__setattr__(self, "fingerprint", _fingerprint(self.chain, self.camera))
 
     def __hash__(self):
@@ -110,8 +111,9 @@ def _batch_joints(batch) -> jax.Array:
         raise ValueError("the kinematic autoencoder's loss needs batch['joints'] (B, 101, 7)")
     q = batch["joints"]
     shape = getattr(q, "shape", None)
-    if shape is None or len(shape) != 3 or tuple(shape[1:]) != (mo.FRAMES, mo.JOINTS):
-        raise ValueError(f"batch['joints'] must have shape (B, {mo.FRAMES}, {mo.JOINTS}), got {shape}")
+    if shape is None or len(shape) != 3 or tuple(shape[1:]) != (motion_lib.FRAMES, motion_lib.JOINTS):
+        raise ValueError(f"batch['joints'] must have shape (B, {motion_lib.FRAMES}, {motion_lib.JOINTS}), "
+                         f"got {shape}")
     return q
 
 
@@ -130,7 +132,7 @@ class KinematicAE(nn.Module):
         half = max(self.cfg.width // 2, 1)
         self.encoder = MotionEncoder(self.cfg)
         self.body = LatentDecoderBody(self.cfg)
-        self.joint_head = MLP((half, mo.JOINTS))
+        self.joint_head = MLP((half, motion_lib.JOINTS))
         self.grip_head = MLP((half, 1))
 
     def __call__(self, motion):

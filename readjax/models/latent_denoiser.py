@@ -25,7 +25,7 @@ import flax.linen as nn
 import jax.numpy as jnp
 
 from readjax.config import DenoiserConfig
-from readjax.data import motion as mo
+from readjax.data import motion as motion_lib
 from readjax.models.convnext_unet import ConvNeXtUNet
 from readjax.models.denoiser import time_features
 from readjax.models.vae import MLP, EncoderLayer, embed_mlp, sinusoidal_positions
@@ -66,8 +66,8 @@ class LatentDenoiser(nn.Module):
         if z_t.ndim != 2 or z_t.shape[1] != self.latent_dim:
             raise ValueError(f"z_t must have shape (B, {self.latent_dim}), got {z_t.shape}")
         b = z_t.shape[0]
-        if uv.shape != (b, mo.FRAMES, 2):
-            raise ValueError(f"uv must have shape ({b}, {mo.FRAMES}, 2), got {uv.shape}")
+        if uv.shape != (b, motion_lib.FRAMES, 2):
+            raise ValueError(f"uv must have shape ({b}, {motion_lib.FRAMES}, 2), got {uv.shape}")
         if features.ndim != 4 or features.shape[0] != b or features.shape[-1] != c.conv_dims[0]:
             raise ValueError(f"features (from encode_image) must have shape (B={b}, H/4, W/4, "
                              f"{c.conv_dims[0]}), got {features.shape}")
@@ -78,7 +78,7 @@ class LatentDenoiser(nn.Module):
         img = self.image_tokens(features, uv)
         if self.image_proj is not None:
             img = self.image_proj(img)
-        x = jnp.concatenate([seq, img + sinusoidal_positions(mo.FRAMES, d)], axis=1)
+        x = jnp.concatenate([seq, img + sinusoidal_positions(motion_lib.FRAMES, d)], axis=1)
         for layer in self.layers:
             x = layer(x)
         return z_t + self.head(x[:, 0])

@@ -20,7 +20,7 @@ import flax.linen as nn
 import jax
 
 from readjax.config import ResNetConfig
-from readjax.data import motion as mo
+from readjax.data import motion as motion_lib
 from readjax.models.convnext_unet import check_image
 from readjax.models.vae import KEY_DIMS
 
@@ -82,8 +82,9 @@ class DeterministicPlanner(nn.Module):
         parts = {}
         for k, dim in KEY_DIMS.items():
             h = nn.gelu(nn.Dense(c.hidden, name=f"{k}_hidden")(x), approximate=False)
-            parts[k] = nn.Dense(mo.FRAMES * dim, name=f"{k}_out")(h).reshape(b, mo.FRAMES, dim)
-        return mo.join_keys(parts)
+            parts[k] = nn.Dense(motion_lib.FRAMES * dim, name=f"{k}_out")(h).reshape(
+                b, motion_lib.FRAMES, dim)
+        return motion_lib.join_keys(parts)
 
 
 def param_count(params) -> int:

@@ -26,7 +26,7 @@ import flax.linen as nn
 import numpy as np
 
 from readjax.config import VAEConfig
-from readjax.data import motion as mo
+from readjax.data import motion as motion_lib
 
 LN_EPS = 1e-5  # PyTorch's LayerNorm default, as in the original transformer layers
 
@@ -109,19 +109,19 @@ class DecoderLayer(nn.Module):
         return x
 
 
-KEY_DIMS = {k: s.stop - s.start for k, s in mo.KEYS.items()}
+KEY_DIMS = {k: s.stop - s.start for k, s in motion_lib.KEYS.items()}
 
 
 def check_motion_shape(m, name: str = "motion") -> None:
     """ValueError unless ``m`` has the static shape (B, 101, 10) (works on tracers)."""
     shape = getattr(m, "shape", None)
-    if shape is None or len(shape) != 3 or tuple(shape[1:]) != (mo.FRAMES, mo.DIM):
-        raise ValueError(f"{name} must have shape (B, {mo.FRAMES}, {mo.DIM}), got {shape}")
+    if shape is None or len(shape) != 3 or tuple(shape[1:]) != (motion_lib.FRAMES, motion_lib.DIM):
+        raise ValueError(f"{name} must have shape (B, {motion_lib.FRAMES}, {motion_lib.DIM}), got {shape}")
 
 
 def motion_mse(pred: jax.Array, target: jax.Array) -> dict[str, jax.Array]:
     """Per-key mean squared errors between two motions (keys of ``readjax.data.motion.KEYS``)."""
-    return {k: jnp.mean((pred[..., s] - target[..., s]) ** 2) for k, s in mo.KEYS.items()}
+    return {k: jnp.mean((pred[..., s] - target[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
 
 
 def weighted_motion_loss(pred: jax.Array, target: jax.Array,
@@ -185,7 +185,8 @@ class LatentDecoderBody(nn.Module):
         if c.latent_dim != c.width:
             z = nn.Dense(c.width, name="latent_proj")(z)
         memory = (z + self.param("latent_bias", nn.initializers.normal(1.0), (c.width,)))[:, None, :]
-        x = jnp.broadcast_to(sinusoidal_positions(mo.FRAMES, c.width), (z.shape[0], mo.FRAMES, c.width))
+        x = jnp.broadcast_to(sinusoidal_positions(motion_lib.FRAMES, c.width),
+                             (z.shape[0], motion_lib.FRAMES, c.width))
         for i in range(c.layers):
             x = DecoderLayer(c.width, c.heads, c.ffn, name=f"layer_{i}")(x, memory)
         return x
@@ -224,7 +225,7 @@ class MotionVAE(nn.Module):
 
     def decode(self, z):
         h = self.body(z)
-        return mo.join_keys({k: self.heads[k](h) for k in mo.KEYS})
+        return motion_lib.join_keys({k: self.heads[k](h) for k in motion_lib.KEYS})
 
     def loss(self, batch, key=None):
         motion = _batch_motion(batch)
