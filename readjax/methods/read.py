@@ -21,6 +21,8 @@ from readjax.models.denoiser import Denoiser
 from readjax.models.kinematic_vae import make_autoencoder
 from readjax.training import Stage, StageSpec
 
+STAGES = ("vae", "read")
+
 
 def build_modules(configs: dict, chain, camera):
     ae = make_autoencoder(configs["vae"], chain=chain, camera=camera)
@@ -122,7 +124,7 @@ def fit_latent_stats(run_dir: Path, ae, ae_params, motions, sde):
 
 
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
-          stages=("vae", "read"), progress: bool = True, stop_at: int | None = None) -> dict:
+          stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ for a task; each stage resumes from its latest checkpoint. Returns run.json."""
     task = tasks.canonical_name(task)
     run_dir = Path(run_dir)

@@ -1,27 +1,58 @@
-"""The method registry and the config sections of section 10's methods: every method loads, READ's
-recorded configs are unchanged by the new sections, and the new fields are settable."""
+"""The method registry and the config sections of section 10's methods: every method has the same
+shape (STAGES, train, a model class), the CLIs offer exactly the registered methods and presets,
+READ's recorded configs are unchanged by the new sections, and the new fields are settable."""
 
-import dataclasses
+import argparse
 import importlib
+import inspect
 import json
 
 import pytest
 
-from readjax import config
+from readjax import config, diffusion
 from readjax import methods
+from readjax.methods import common
+
+METHOD_NAMES = {"read", "read_o", "read_l", "deterministic", "vpsde", "vpsde_cg"}
 
 
 def test_registry():
-    assert set(methods.names()) >= {"read", "read_o", "read_l", "deterministic", "vpsde", "vpsde_cg"}
+    assert set(methods.names()) == METHOD_NAMES
     for name in methods.names():
         mod = methods.module(name)
         cls = getattr(mod, methods.METHODS[name][1])
-        assert isinstance(cls.uses_retrieval, bool) and isinstance(cls.iterative, bool) and hasattr(mod, "train")
+        assert issubclass(cls, common.RunModel)
+        assert isinstance(cls.uses_retrieval, bool) and isinstance(cls.iterative, bool)
         assert cls.iterative == (name != "deterministic")  # only Deterministic ignores N
-        if hasattr(mod, "STAGES"):
-            assert tuple(mod.STAGES) == methods.stages(name)
+        # every method module, READ's included, names its stages and trains them all by default
+        assert isinstance(mod.STAGES, tuple) and mod.STAGES == methods.stages(name), name
+        assert callable(mod.train)
+        assert inspect.signature(mod.train).parameters["stages"].default == mod.STAGES, name
+    assert methods.stages("read") == ("vae", "read")
     assert not methods.module("vpsde").VPSDEModel.uses_retrieval
     assert methods.module("vpsde_cg").VPSDECGModel.uses_retrieval
+    with pytest.raises(ValueError, match="unknown method"):
+        methods.module("nope")
+
+
+def _option(parser: argparse.ArgumentParser, flag: str) -> argparse.Action:
+    return next(a for a in parser._actions if flag in a.option_strings)
+
+
+@pytest.mark.parametrize("cli, flag", [("train", "--model"), ("sweep", "--model"), ("pipeline", "--methods")])
+def test_cli_methods_are_the_registry(cli, flag):
+    parser = importlib.import_module(f"experiments.{cli}").parser()
+    assert tuple(_option(parser, flag).choices) == methods.names()
+
+
+def test_cli_presets_are_the_configs():
+    for cli in ("train", "sweep", "pipeline"):
+        parser = importlib.import_module(f"experiments.{cli}").parser()
+        assert set(_option(parser, "--preset").choices) == set(config.preset_names()), cli
+    bench = importlib.import_module("experiments.bench").parser()
+    sub = next(a for a in bench._actions if isinstance(a, argparse._SubParsersAction))
+    presets = _option(sub.choices["planner"], "--presets")
+    assert set(presets.choices) == set(presets.default) == set(config.preset_names())
 
 
 def test_read_runs_record_only_reads_sections():
@@ -46,9 +77,14 @@ def test_new_fields_are_settable():
     assert config.override(config.presets("cpu"), ["latent_dim=16", "drop_path=0"])["vae"].latent_dim == 16
     with pytest.raises(ValueError, match="ambiguous"):
         config.override(config.presets("cpu"), ["sampler=em"])
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="sampler must be one of"):
         config.override(config.presets("cpu"), ["vpsde.sampler=heun"])
     assert config.preset("cpu")["resnet"].input_size == config.preset("cpu")["denoiser"].image_size
-    hash(tuple(config.preset("paper").values()))
-    assert dataclasses.replace(config.ReadOConfig(), sampler="em").sampler == "em"
-    importlib.import_module("readjax.diffusion").vpsde  # noqa: B018
+    hash(tuple(config.preset("paper").values()))  # raises if a section is unhashable (jit static args)
+
+
+def test_diffusion_package_exports_its_samplers():
+    assert set(diffusion.__all__) == {"irsde", "refine", "taskspace", "vpsde"}
+    for name in diffusion.__all__:
+        assert getattr(diffusion, name) is not None, name
+    assert callable(diffusion.refine) and callable(diffusion.vpsde.sample)
