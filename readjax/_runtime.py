@@ -15,9 +15,11 @@ Why this exists (measured, see BENCHMARKS.md and ../shared/STACK.md):
 
 from __future__ import annotations
 
+import ctypes.util
 import os
 import sys
 import warnings
+from importlib import metadata
 
 _CPU_FLAG = "--xla_cpu_use_fusion_emitters=false"
 
@@ -39,8 +41,6 @@ def fusion_flag_known(jaxlib_version: str | None) -> bool:
 
 def installed_version(package: str) -> str | None:
     """An installed distribution's version, None if absent (no import of the package itself)."""
-    from importlib import metadata
-
     try:
         return metadata.version(package)
     except metadata.PackageNotFoundError:
@@ -77,8 +77,6 @@ def choose_gl(find_library) -> str:
 def configure_gl() -> None:
     """Headless OpenGL for mujoco.Renderer (must be chosen before mujoco is imported)."""
     if "MUJOCO_GL" not in os.environ:
-        import ctypes.util
-
         os.environ["MUJOCO_GL"] = choose_gl(ctypes.util.find_library)
     if os.environ["MUJOCO_GL"] in ("egl", "osmesa"):
         os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])

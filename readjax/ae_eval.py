@@ -25,6 +25,10 @@ import numpy as np
 from readjax import config, tasks
 from readjax import geometry as geo
 from readjax.data import motion as motion_lib
+from readjax.methods import base
+from readjax.methods import read as read_lib
+from readjax.models.kinematic_vae import make_autoencoder
+from readjax.sim.camera import CameraParams
 from readjax.sim.ik import IKParams, pose_error, solve_ik
 from readjax.sim.kinematics import HOME_Q, ArmChain
 
@@ -81,11 +85,6 @@ def reconstruction_errors(camera, recon: np.ndarray, target: np.ndarray, image_s
 
 def load_autoencoder(run_dir: str | Path):
     """(autoencoder module, its trained params, run spec) of a run's ``vae/`` stage."""
-    from readjax.methods import base
-    from readjax.methods import read as read_lib
-    from readjax.models.kinematic_vae import make_autoencoder
-    from readjax.sim.camera import CameraParams
-
     run_dir = Path(run_dir)
     spec = base.read_run(run_dir)
     if "vae" not in spec["configs"]:
@@ -101,8 +100,6 @@ def load_autoencoder(run_dir: str | Path):
 
 def evaluate_autoencoder(run_dir: str | Path, motions: np.ndarray, chunk: int = 64) -> dict:
     """Reconstruction errors and reachability of a run's autoencoder on ``motions`` (B, 101, 10)."""
-    from readjax.sim.camera import CameraParams
-
     ae, params, spec = load_autoencoder(run_dir)
     camera = CameraParams.from_dict(spec["camera"])
     recon_fn = jax.jit(lambda p, m: ae.apply(p, ae.apply(p, m, method="code"), method="decode"))

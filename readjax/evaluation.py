@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from readjax import provenance, tasks
+from readjax import provenance, tasks, viz
 from readjax.data import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
@@ -120,8 +120,6 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "versions": provenance.versions(), "machine": provenance.machine(),
     }
     if out_dir is not None:
-        from readjax import viz  # rendering and video encoding only when pictures are written
-
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         (out / f"{name}.json").write_text(json.dumps(result, indent=2))

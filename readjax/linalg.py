@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import jax.scipy.linalg as jsl
 from jax import lax
 
 
@@ -95,8 +96,6 @@ def install_cpu_cholesky(force: bool = False) -> bool:
         return True
     if not force and jax.default_backend() != "cpu":
         return False
-    import jax.scipy.linalg as jsl
-
     jsl.cho_factor = cho_factor
     jsl.cho_solve = cho_solve
     _installed = True

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from readjax import tasks
+from readjax import methods, tasks
 
 
 class PipelineError(RuntimeError):
@@ -47,8 +47,6 @@ class PipelineConfig:
         i, n = self.shard
         if not (n >= 1 and 0 <= i < n):
             raise ValueError(f"--shard must be i/n with 0 <= i < n, got {i}/{n}")
-        from readjax import methods
-
         for m in self.methods:
             methods.module(m)
         return PipelineConfig(**{**self.__dict__, "tasks": names})

@@ -20,6 +20,7 @@ import numpy as np
 from readjax import retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.data import store
+from readjax.methods import load_model
 from readjax.sim.execute import ExecConfig, solve_waypoints
 
 
@@ -58,8 +59,6 @@ class Planner:
 
     @classmethod
     def load(cls, run_dir: str | Path, data_root: str | Path | None = None, n_steps: int | None = None) -> "Planner":
-        from readjax.methods import load_model
-
         model = load_model(run_dir)
         spec = model.spec
         root = data_root or spec["data_root"]

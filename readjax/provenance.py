@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import platform
 
+import jax
+
 from readjax._runtime import installed_version
 
 PACKAGES = ("readjax", "jax", "jaxlib", "flax", "optax", "orbax-checkpoint", "mujoco", "mujoco-mjx",
@@ -18,8 +20,6 @@ def versions() -> dict[str, str]:
 
 
 def machine() -> dict[str, str]:
-    import jax
-
     devs = jax.devices()
     return {"platform": platform.platform(), "backend": jax.default_backend(),
             "devices": f"{len(devs)} x {devs[0].device_kind}"}

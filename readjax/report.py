@@ -3,8 +3,10 @@ Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenan
 
 from __future__ import annotations
 
+import fnmatch
 import json
 import re
+from math import comb
 from pathlib import Path
 
 import numpy as np
@@ -43,8 +45,6 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
     """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``, except those of runs
     whose name (folder name, or the label of ``run_label``) matches one of the ``exclude`` glob
     patterns."""
-    import fnmatch
-
     root = Path(runs_root)
     out = []
     for f in sorted(root.rglob("eval/*.json")):
@@ -164,8 +164,6 @@ def provenance_lines(results: list[dict]) -> list[str]:
 def mcnemar_p(a, b) -> float:
     """Exact two-sided McNemar p-value for two methods' successes on the same episodes: a binomial
     test on the discordant episodes (one succeeds, the other fails). 1.0 when none are discordant."""
-    from math import comb
-
     a, b = np.asarray(a, bool), np.asarray(b, bool)
     if a.shape != b.shape:
         raise ValueError(f"paired outcomes must have the same episodes, got {a.shape} and {b.shape}")

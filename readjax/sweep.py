@@ -16,7 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from readjax import config, methods, tasks
+from readjax import config, evaluation, methods, tasks
+from readjax.data import store
+from readjax.data.generate import GenerateConfig, generate
+from readjax.planner import Planner
 
 TEST_TIME = ("N",)
 TRAIN_KEYS = {"K": "train.K", "L": "sde.lam", "T": "sde.theta1"}
@@ -67,11 +70,6 @@ def _label(v) -> str:
 
 
 def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
-    from readjax import evaluation
-    from readjax.data import store
-    from readjax.data.generate import GenerateConfig, generate
-    from readjax.planner import Planner
-
     task = tasks.canonical_name(cfg.task)
     sweep_dir = Path(cfg.out) / task / cfg.name
     train_keys = [k for k in TRAIN_KEYS if k in cfg.grid]

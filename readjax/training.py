@@ -23,6 +23,7 @@ import numpy as np
 import optax
 import orbax.checkpoint as ocp
 from flax import struct
+from tqdm.auto import tqdm
 
 from readjax import provenance, sharding
 from readjax.config import SECTIONS, TrainConfig
@@ -243,8 +244,6 @@ class Stage:
 
 
 def _bar(enabled: bool, name: str, total: int, initial: int):
-    from tqdm.auto import tqdm
-
     return tqdm(total=total, initial=initial, desc=name, unit="step", disable=not enabled, dynamic_ncols=True)
 
 

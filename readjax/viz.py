@@ -5,11 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import imageio.v2 as imageio
 import jax
 import jax.numpy as jnp
 import numpy as np
 from PIL import Image, ImageDraw
 
+from readjax.data.generate import episode_fn
+from readjax.sim.reference import replay
 from readjax.sim.render import SceneRenderer
 
 
@@ -24,9 +27,6 @@ def first_frame(env, seed: int, size: int = 192) -> np.ndarray:
 
 def expert_video(env, seed: int, size: int = 192, every: int = 2) -> list[np.ndarray]:
     """Frames of the expert demonstration for ``seed``: the MJX rollout replayed in C MuJoCo."""
-    from readjax.data.generate import episode_fn
-    from readjax.sim.reference import replay
-
     scenes, _, _, trace = episode_fn(env)(jnp.arange(2, dtype=jnp.int32) + seed)
     scene = jax.tree.map(lambda x: np.asarray(x)[0], scenes)
     tr = jax.tree.map(lambda x: np.asarray(x)[0], trace)
@@ -44,8 +44,6 @@ def expert_video(env, seed: int, size: int = 192, every: int = 2) -> list[np.nda
 
 
 def save_video(path: str | Path, frames: list[np.ndarray], fps: int = 25) -> None:
-    import imageio.v2 as imageio
-
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix == ".gif":
@@ -107,8 +105,6 @@ def motion_overlay(images: np.ndarray, layers: list[tuple[str, np.ndarray, tuple
 
 def rollout_video(env, scenes, traces, size: int = 160, every: int = 2, max_episodes: int = 4) -> list[np.ndarray]:
     """Side-by-side frames of executed rollouts (replayed in C MuJoCo from their recorded controls)."""
-    from readjax.sim.reference import replay
-
     n = min(max_episodes, len(np.asarray(scenes.qpos)))
     per_episode = []
     with SceneRenderer(env.mj_model, size, size) as r:

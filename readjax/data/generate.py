@@ -17,6 +17,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+from tqdm.auto import tqdm
 
 from readjax import provenance, sharding, tasks
 from readjax.prng import seed_pure
@@ -206,7 +207,5 @@ def _previous_seconds(path: Path) -> float:
 
 
 def _progress_bar(enabled: bool, cfg: GenerateConfig, initial: int):
-    from tqdm.auto import tqdm
-
     return tqdm(total=cfg.episodes, initial=initial, desc=f"{cfg.task}/{cfg.split}", unit="demo",
                 disable=not enabled, dynamic_ncols=True)

@@ -14,6 +14,7 @@ Denoiser's ``uv`` argument); its eps output is in normalised units.
 from __future__ import annotations
 
 import json
+from functools import partial
 from pathlib import Path
 
 import jax
@@ -23,6 +24,8 @@ import numpy as np
 from readjax import config, retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.methods import base
+from readjax.models.denoiser import Denoiser
+from readjax.sim.camera import CameraParams
 from readjax.training import CheckpointError
 
 NORMALIZER_FILE = "normalizer.json"
@@ -128,8 +131,6 @@ class RunModel:
     iterative = True  # generate() runs n_steps of a sampler (False: one forward pass, N is ignored)
 
     def __init__(self, run_dir):
-        from readjax.sim.camera import CameraParams
-
         self.run_dir = Path(run_dir)
         self.spec = base.read_run(self.run_dir)
         self.configs = config.configs_from_dict(self.spec["configs"])
@@ -154,9 +155,25 @@ class DenoiserRunModel(RunModel):
         return self._encode(self.den_params, images)
 
     def database_tokens(self, images: np.ndarray, motions: np.ndarray) -> np.ndarray:
-        from readjax.methods.read import database_features
-
         return database_features(self.den, self.den_params, images, motions)
 
     def spe_distances(self, features, db_uv, db_tokens) -> np.ndarray:
         return retrieval.spe_distances(self.den, self.den_params, features, db_uv, db_tokens)
+
+
+@partial(jax.jit, static_argnums=(0,))
+def database_tokens(den: Denoiser, den_params, images: jax.Array, motions: jax.Array) -> jax.Array:
+    """Each database image's features sampled along its own motion (N, 101, C), for SPE retrieval."""
+    feats = den.apply(den_params, images, method="encode_image")
+    return den.apply(den_params, feats, motion_lib.uv(motions), method="image_tokens")
+
+
+def database_features(den, den_params, images: np.ndarray, motions: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """database_tokens in fixed-size chunks (the last one padded: one compile)."""
+    n, out = len(images), []
+    chunk = min(chunk, n)
+    for s in range(0, n, chunk):
+        idx = np.arange(s, s + chunk) % n
+        tok = database_tokens(den, den_params, jnp.asarray(images[idx]), jnp.asarray(motions[idx]))
+        out.append(np.asarray(tok)[: min(chunk, n - s)])
+    return np.concatenate(out)

@@ -4,21 +4,21 @@ sections 4-6), in two resumable stages of one run folder (``vae/``, ``read/``)."
 from __future__ import annotations
 
 import dataclasses
-from functools import partial
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from readjax import config, retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde
 from readjax.diffusion import latent as latent_lib
+from readjax.diffusion.refine import refine
 from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb
 from readjax.models.denoiser import Denoiser
 from readjax.models.kinematic_vae import make_autoencoder
+from readjax.sim.camera import CameraParams
 from readjax.training import Stage, StageSpec
 
 STAGES = ("vae", "read")
@@ -94,9 +94,7 @@ def with_motion_stats(configs: dict, motions) -> dict:
     den = configs["denoiser"]
     if not den.normalize_motion or den.motion_std:
         return configs
-    from readjax.methods.common import motion_stats
-
-    mean, std = motion_stats(motions)
+    mean, std = common.motion_stats(motions)
     return dict(configs, denoiser=dataclasses.replace(den, motion_mean=tuple(round(float(v), 6) for v in mean),
                                                       motion_std=tuple(round(float(v), 6) for v in std)))
 
@@ -167,8 +165,6 @@ class ReadModel(common.DenoiserRunModel):
     uses_retrieval = True
 
     def __init__(self, run_dir: str | Path):
-        from readjax.sim.camera import CameraParams
-
         self.run_dir = Path(run_dir)
         self.spec = base.read_run(self.run_dir)
         self.configs = configs = config.configs_from_dict(self.spec["configs"])
@@ -207,25 +203,5 @@ class ReadModel(common.DenoiserRunModel):
         self.configs = dict(self.configs, sde=dataclasses.replace(self.configs["sde"], update=update))
 
     def generate(self, features, m_r, key, n_steps: int) -> jax.Array:
-        from readjax.diffusion.refine import refine
-
         return refine(self.ae, self.ae_params, self.den, self.den_params, features, jnp.asarray(m_r), key,
                       int(n_steps), self.configs["sde"], latent=self.latent)
-
-
-@partial(jax.jit, static_argnums=(0,))
-def database_tokens(den: Denoiser, den_params, images: jax.Array, motions: jax.Array) -> jax.Array:
-    """Each database image's features sampled along its own motion (N, 101, C), for SPE retrieval."""
-    feats = den.apply(den_params, images, method="encode_image")
-    return den.apply(den_params, feats, motion_lib.uv(motions), method="image_tokens")
-
-
-def database_features(den, den_params, images: np.ndarray, motions: np.ndarray, chunk: int = 64) -> np.ndarray:
-    """database_tokens in fixed-size chunks (the last one padded: one compile)."""
-    n, out = len(images), []
-    chunk = min(chunk, n)
-    for s in range(0, n, chunk):
-        idx = np.arange(s, s + chunk) % n
-        tok = database_tokens(den, den_params, jnp.asarray(images[idx]), jnp.asarray(motions[idx]))
-        out.append(np.asarray(tok)[: min(chunk, n - s)])
-    return np.concatenate(out)
