@@ -13,12 +13,13 @@ Deterministic), :class:`VPSDEConfig` (``vpsde``, VPSDE and VPSDE+CG) and :class:
 (``read_o``); READ-L uses READ's three. ``METHOD_SECTIONS`` names them: a run records only the
 sections its method uses (READ's runs: vae, denoiser, sde).
 
-``preset(name)`` returns ``{"vae": ..., "denoiser": ..., "sde": ..., "resnet": ..., ...}`` for
-``"paper"`` (the paper's sizes, meant for a GPU) or ``"cpu"`` (small enough for a 2-core CPU: a
-batch-32 train step well under 0.3 s); ``presets(name)`` adds ``"train"`` (``presets``).
-:func:`override` applies ``"key=value"`` strings (from a CLI) to such a dict; :func:`to_dict` /
-:func:`from_dict` round-trip it through JSON for checkpoints, :func:`configs_to_dict` /
-:func:`configs_from_dict` a run's configs for ``run.json`` (``parse``).
+Module ``presets``: ``preset(name)`` returns ``{"vae": ..., "denoiser": ..., "sde": ...,
+"resnet": ..., ...}`` for ``"paper"`` (the paper's sizes, meant for a GPU) or ``"cpu"`` (small
+enough for a 2-core CPU: a batch-32 train step well under 0.3 s); ``presets(name)`` adds the
+``"train"`` section; ``preset_names()`` lists them (the CLIs' ``--preset`` choices). Module
+``parse``: :func:`override` applies ``"key=value"`` strings (from a CLI) to such a dict;
+:func:`to_dict` / :func:`from_dict` round-trip it through JSON for checkpoints,
+:func:`configs_to_dict` / :func:`configs_from_dict` a run's configs for ``run.json``.
 
 The configs are frozen and hashable, so modules built from them can be static arguments of
 ``jax.jit``.
