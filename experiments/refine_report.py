@@ -34,6 +34,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--N", type=int, nargs="+", default=[0, 1, 10, 100], help="refinement steps to compare")
     p.add_argument("--refine", default=None, choices=REFINE_UPDATES,
                    help="refinement update (default: the run's sde.update)")
+    p.add_argument("--retrieval", default="spe", choices=("spe", "cheat"),
+                   help="where refinement starts: SPE retrieval (the planner's) or the oracle's nearest "
+                        "neighbour of the ground truth (Tables 4-5: refinement from the best start)")
     p.add_argument("--batch-size", type=_cli.positive_int, default=50)
     p.add_argument("--out", default=None, help="JSON path")
     p.add_argument("--quiet", action="store_true")
@@ -61,9 +64,11 @@ def main(argv=None) -> None:
         n = min(args.images, len(ds))
         splits[name] = (ds.rgbd[:n], ds.motion[:n])
     say = None if args.quiet else (lambda msg: print(f"  {msg}", flush=True))
-    result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say)
+    result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say,
+                                  retrieval=args.retrieval)
     result.update(run=str(args.run), task=spec["task"], images=args.images)
-    out = Path(args.out) if args.out else Path(args.run) / "diagnostics" / f"refine_{result['update']}.json"
+    suffix = "" if args.retrieval == "spe" else f"_{args.retrieval}"
+    out = Path(args.out) if args.out else Path(args.run) / "diagnostics" / f"refine_{result['update']}{suffix}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
     print(refine_report.format_report(result))

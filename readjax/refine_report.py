@@ -38,15 +38,19 @@ def summarise(errors: dict[str, np.ndarray]) -> dict[str, float]:
             "within_3cm": float(np.mean(errors["err_cm"] < WITHIN_M * 100))}
 
 
-def refine_history(planner, images: np.ndarray, key: jax.Array, n_steps: int, batch_size: int = 50):
-    """Retrieved motions (B, 101, 10) and every step's M̂0 (N, B, 101, 10) for READ's planner."""
+def refine_history(planner, images: np.ndarray, key: jax.Array, n_steps: int, batch_size: int = 50,
+                   retrieval: str = "spe", gt: np.ndarray | None = None):
+    """Retrieved motions (B, 101, 10) and every step's M̂0 (N, B, 101, 10) for READ's planner.
+    ``retrieval`` "spe" (the planner's) or "cheat" (the oracle's nearest neighbour of ``gt``: what
+    refinement does from the best start the database holds)."""
     model = planner.model
     retrieved, hist = [], []
     for s in range(0, len(images), batch_size):
         idx = np.arange(s, s + batch_size) % len(images)  # fixed batch shape: one compile per N
         take = min(batch_size, len(images) - s)
         feats = planner.encode(images[idx])
-        m_r = jnp.asarray(planner.database.motion[planner.retrieve(feats)])
+        gt_batch = None if gt is None else np.asarray(gt)[idx]
+        m_r = jnp.asarray(planner.database.motion[planner.retrieve(feats, retrieval, gt_batch)])
         _, h = refine(model.ae, model.ae_params, model.den, model.den_params, feats, m_r,
                       jax.random.fold_in(key, s), n_steps, model.configs["sde"], return_history=True,
                       latent=model.latent)
@@ -93,9 +97,10 @@ def require_read(planner) -> None:
 
 
 def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT_NS, seed: int = 0,
-           batch_size: int = 50, progress=None) -> dict:
+           batch_size: int = 50, progress=None, retrieval: str = "spe") -> dict:
     """``splits``: name -> (images at the planner's size, ground-truth motions). Returns rows
-    (split, N, errors), plus per-step drift and end-depth error along the largest N."""
+    (split, N, errors), plus per-step drift and end-depth error along the largest N. ``retrieval``:
+    where refinement starts, "spe" (the planner's) or "cheat" (the oracle, Tables 4-5)."""
     require_read(planner)
     rows, loops, clean = [], {}, {}
     n_max = max(ns)
@@ -104,10 +109,10 @@ def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT
             if progress:
                 progress(f"{split} N={n}")
             if n == 0:
-                plans, _ = refine_history(planner, images, jax.random.key(seed), 0, batch_size)
+                plans, _ = refine_history(planner, images, jax.random.key(seed), 0, batch_size, retrieval, gt)
                 hist = None
             else:
-                _, hist = refine_history(planner, images, jax.random.key(seed), n, batch_size)
+                _, hist = refine_history(planner, images, jax.random.key(seed), n, batch_size, retrieval, gt)
                 plans = hist[-1]
             rows.append({"split": split, "N": n, **summarise(end_errors(planner.camera, plans, gt,
                                                                          planner.image_size))})
@@ -116,12 +121,13 @@ def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT
                 depth = np.abs(hist[:, :, -1, 2] - gt[None, :, -1, 2]).mean(axis=1) * 1000  # (N,)
                 loops[split] = {"N": n, "drift_mean_abs": drift.tolist(), "end_depth_err_mm_mean": depth.tolist()}
         clean[split] = clean_input_errors(planner, images, gt, batch_size=batch_size)
-    return {"rows": rows, "loops": loops, "clean_input": clean, "update": planner.model.configs["sde"].update}
+    return {"rows": rows, "loops": loops, "clean_input": clean, "update": planner.model.configs["sde"].update,
+            "retrieval": retrieval}
 
 
 def format_report(result: dict) -> str:
     """The table of the refinement issue (one line per split and N) and the loop's trajectory."""
-    lines = [f"refinement update: {result['update']}",
+    lines = [f"refinement update: {result['update']}, retrieval: {result.get('retrieval', 'spe')}",
              "| images | N | end uv err (px, median) | end depth err (mm, median) | 3D err (cm, median) | within 3 cm |",
              "|---|---|---|---|---|---|"]
     for r in result["rows"]:

@@ -14,6 +14,7 @@ import readjax
 from experiments import _cli
 from experiments import evaluate as evaluate_cli
 from experiments import train as train_cli
+from readjax import refine_report, retrieval
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.planner import Planner
@@ -81,6 +82,17 @@ def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
     assert [r["t"] for r in result["clean_input"]["train"]] == [None, 1.0, 0.5, 0.1, 0.01]
     assert "| train | 3 |" in capsys.readouterr().out
     assert _cli.run(refine_report_cli.main, argv + ["--N", "-1"]) == 2
+    # from the oracle's start: the test plans at N = 0 are each episode's nearest training demo
+    assert _cli.run(refine_report_cli.main, argv + ["--retrieval", "cheat", "--N", "0"]) == 0
+    cheat = json.loads(out.read_text())
+    assert cheat["retrieval"] == "cheat"
+    planner = Planner.load(run_dir, data)
+    test = store.load_dataset(data / "reach_target" / "test").resized(planner.image_size)
+    nearest = retrieval.oracle_retrieve(planner.camera, test.motion[:4], planner.database.motion, 1)
+    want = refine_report.summarise(refine_report.end_errors(planner.camera, planner.database.motion[nearest],
+                                                            test.motion[:4], planner.image_size))
+    assert cheat["rows"][1]["split"] == "test"
+    assert cheat["rows"][1]["err_cm_median"] == pytest.approx(want["err_cm_median"], abs=1e-6)
 
 
 def test_planner_api_and_bad_input(run):

@@ -143,10 +143,9 @@ class SDEConfig:
     ``latent_norm`` (the latent methods, READ and READ-L): the SDE runs on the autoencoder's latent
     standardised per dimension with the training set's mean and std (measured once the autoencoder
     is trained, ``readjax.diffusion.latent``), so that ``lam`` is a noise level in units of the
-    data's own spread in every dimension. False is the paper's raw latent (the dataclass default,
-    so runs recorded before the field existed keep their meaning); the presets turn it on: on a raw
-    latent whose dimensions spread by 0.03-1.3, lam = 0.5 buries most of them (beyond the paper,
-    see README).
+    data's own spread in every dimension. False (the default, both presets) is the paper's raw
+    code. Measured on reach_target it makes the denoiser's local corrections better but READ's
+    executed success worse (BENCHMARKS.md section 8), so it stays an option.
     """
 
     lam: float = 0.5

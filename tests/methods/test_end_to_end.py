@@ -30,8 +30,8 @@ CASES = {  # run name -> (method, extra overrides, stages)
     "vpsde": ("vpsde", ["vpsde.sampler=sde"], ("vpsde",)),
     "vpsde_cg": ("vpsde_cg", ["vpsde.guidance=1.5"], ("vpsde_cg",)),
     "read_o": ("read_o", [], ("read_o",)),
-    "read_l": ("read_l", [], ("vae", "read_l")),
-    "read_kinematic": ("read", ["vae.kinematic=true"], ("vae", "read")),
+    "read_l": ("read_l", ["sde.latent_norm=true"], ("vae", "read_l")),
+    "read_kinematic": ("read", ["vae.kinematic=true", "sde.latent_norm=true"], ("vae", "read")),
 }
 
 
@@ -56,7 +56,7 @@ def test_train_and_plan(data, name):
     for stage in stages:
         rows = [json.loads(ln) for ln in (run_dir / stage / "metrics.jsonl").read_text().splitlines()]
         assert rows[-1]["step"] == 4 and np.isfinite(rows[-1]["loss"])
-    if method in ("read", "read_l"):  # the preset's SDE runs on the standardised latent
+    if method in ("read", "read_l"):  # their SDE runs on the standardised latent (sde.latent_norm)
         assert spec["configs"]["sde"]["latent_norm"]
         stats = json.loads((run_dir / "latent_stats.json").read_text())
         assert len(stats["mean"]) == len(stats["std"]) == 16 and min(stats["std"]) >= stats["std_floor"]

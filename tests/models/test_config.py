@@ -17,9 +17,9 @@ def test_presets():
     sizes = (d.feature_channels, d.d_model, d.layers, d.heads, d.ffn, d.image_size)
     assert sizes == (128, 128, 8, 4, 1024, 256)
     assert d.drop_path == 0.1
-    # the paper's SDE, on the standardised latent (readjax.diffusion.latent; false = the raw code)
-    assert paper["sde"] == SDEConfig(lam=0.5, theta1=2.0, theta0=None, t_min=1e-5, latent_norm=True)
-    assert config.preset("cpu")["sde"].latent_norm and not SDEConfig().latent_norm
+    # the paper's SDE on the raw code (sde.latent_norm, readjax.diffusion.latent, is an option)
+    assert paper["sde"] == SDEConfig(lam=0.5, theta1=2.0, theta0=None, t_min=1e-5, latent_norm=False)
+    assert not config.preset("cpu")["sde"].latent_norm
     assert config.preset("cpu")["denoiser"].image_size == 64
     with pytest.raises(ValueError, match="unknown preset"):
         config.preset("tpu")
