@@ -8,6 +8,7 @@ examples:
   python -m experiments.report --runs runs/ --out docs/results.md
   python -m experiments.report --runs runs/ --exclude 'read_try*' --out docs/results.md
   python -m experiments.report --runs runs/ --compare 'read: spe_N100'   # paired tests vs that row
+  python -m experiments.report --runs results/ --compare 'read: retrieval only (N=0)' deterministic
 """
 
 from __future__ import annotations
@@ -26,9 +27,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--exclude", nargs="*", default=[], metavar="PATTERN",
                    help="leave out runs whose folder name or table name (path below --runs without the task "
                         "folder, e.g. runs3/read) matches a glob pattern")
-    p.add_argument("--compare", default=None, metavar="ROW",
-                   help="add a table of every row's difference to this row (a method label of the tables, "
-                        "e.g. 'read: spe_N100') on the same test episodes, with exact McNemar p-values")
+    p.add_argument("--compare", nargs="+", default=[], metavar="ROW",
+                   help="add, for each ROW, a table of every row's difference to it (a method label of the "
+                        "tables, e.g. 'read: spe_N100') on the same test episodes, with exact McNemar p-values")
     return p
 
 
@@ -36,7 +37,7 @@ def main(argv=None) -> None:
     args = parser().parse_args(argv)
     from readjax.report import write_report
 
-    text = write_report(args.runs, args.out, tuple(args.exclude), args.compare)
+    text = write_report(args.runs, args.out, tuple(args.exclude), tuple(args.compare))
     print(text.split("## Provenance")[0])
     print(f"wrote {args.out}")
 

@@ -223,7 +223,10 @@ def sweeps(runs_root: str | Path) -> list[dict]:
 
 
 def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),
-                 compare: str | None = None) -> str:
+                 compare: tuple[str, ...] | str | None = ()) -> str:
+    """The markdown report of every evaluation under ``runs_root``; ``compare``: the rows to pair
+    every other row with (one paired table each)."""
+    compare = (compare,) if isinstance(compare, str) else tuple(compare or ())
     results = collect(runs_root, exclude)
     if not results:
         raise FileNotFoundError(f"no evaluation results under {runs_root} (run experiments.evaluate first)")
@@ -248,8 +251,8 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
             if not chart_shown:  # the chart shows the first table (the main one when there is one)
                 lines += [f"![success by task]({chart.name})", ""]
                 chart_shown = True
-    if compare:
-        lines += comparison_lines(listed, compare)
+    for reference in compare:
+        lines += comparison_lines(listed, reference)
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]

@@ -99,5 +99,9 @@ def test_compare_pairs_rows_on_common_episodes(tmp_path, capsys):
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--compare", "read: spe_N100"]) == 0
     section = out.read_text().split("## Paired comparison with `read: spe_N100`")[1].split("## Provenance")[0]
     assert "| deterministic | -20 (p=0.5) |" in section  # 2 discordant episodes, both for READ
+    argv = ["--runs", str(runs), "--out", str(out), "--compare", "read: spe_N100", "deterministic"]
+    assert _cli.run(report_cli.main, argv) == 0  # one paired table per reference row
+    other = out.read_text().split("## Paired comparison with `deterministic`")[1].split("## Provenance")[0]
+    assert "| read: spe_N100 | +20 (p=0.5) |" in other
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--compare", "nope"]) == 2
     assert "no row 'nope'" in capsys.readouterr().err
