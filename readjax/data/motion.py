@@ -17,8 +17,8 @@ import jax
 import jax.numpy as jnp
 
 from readjax import geometry as geo
-from readjax.sim import camera as cam_lib
-from readjax.sim.camera import CameraParams
+from readjax import camera as cam_lib
+from readjax.camera import CameraParams
 
 FRAMES = 101
 DIM = 10
@@ -57,6 +57,13 @@ def check_motion(m, name: str = "motion") -> None:
         raise ValueError(f"{name} must have shape (..., {FRAMES}, {DIM}), got {shape}")
     if not bool(jnp.all(jnp.isfinite(jnp.asarray(m)))):
         raise ValueError(f"{name} contains NaN or infinite values")
+
+
+def check_motion_shape(m, name: str = "motion") -> None:
+    """ValueError unless ``m`` has the static shape (B, 101, 10) (works on tracers)."""
+    shape = getattr(m, "shape", None)
+    if shape is None or len(shape) != 3 or tuple(shape[1:]) != (FRAMES, DIM):
+        raise ValueError(f"{name} must have shape (B, {FRAMES}, {DIM}), got {shape}")
 
 
 def encode(cam: CameraParams, pos_world: jax.Array, rot_world: jax.Array, grip_open: jax.Array) -> jax.Array:

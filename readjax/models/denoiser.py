@@ -29,12 +29,12 @@ import jax
 import jax.numpy as jnp
 import flax.linen as nn
 
+from readjax.camera import DEPTH_FAR, DEPTH_NEAR
 from readjax.config import DenoiserConfig
 from readjax.data import motion as motion_lib
+from readjax.data.motion import check_motion_shape
 from readjax.models.convnext_unet import HEAD_STRIDE, ConvNeXtUNet, bilinear_axis
-from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR
-from readjax.models.vae import (KEY_DIMS, MLP, EncoderLayer, check_motion_shape, embed_mlp,
-                                sinusoidal_positions)
+from readjax.models.vae import KEY_DIMS, MLP, EncoderLayer, embed_mlp, sinusoidal_positions
 
 OUTPUTS = ("delta", "eps")
 TIME_MAX_PERIOD = 5000.0
@@ -43,7 +43,7 @@ TIME_MAX_PERIOD = 5000.0
 def sample_features(features: jax.Array, uv: jax.Array) -> jax.Array:
     """Bilinear samples of a feature map (B, H, W, C) at normalised points uv (B, T, 2) -> (B, T, C).
 
-    uv in [-1, 1] follows :mod:`readjax.sim.camera`: u = 2 u_px / W - 1 with pixel i covering
+    uv in [-1, 1] follows :mod:`readjax.camera`: u = 2 u_px / W - 1 with pixel i covering
     [i, i + 1), so pixel centres sit at u_px = i + 0.5 and the map (one vector per pixel) is sampled
     at x = (u + 1) W / 2 - 0.5. Points beyond the outermost pixel centres are clamped to the
     border. Differentiable in both the features and uv.

@@ -8,7 +8,7 @@ gripper channel instead of task-space keys:
 
 so every decoded angle lies strictly inside the Panda joint limits (margin m = ``joint_margin``;
 ``offset`` starts the decoder near the home posture). End-effector poses come from differentiable
-forward kinematics (:func:`readjax.sim.kinematics.fk`, the chain of the simulator's MJCF) and are
+forward kinematics (:func:`readjax.arm.fk`, the chain of the simulator's MJCF) and are
 converted to the front-camera motion format (uv, z, rot6d) — decoded motions are reachable by
 construction. Loss: the paper's task-space losses on the FK motion + ``w_joint`` x joint-space MSE
 against the recorded joints + ``kl_weight`` x KL.
@@ -28,15 +28,15 @@ import jax.numpy as jnp
 import flax.linen as nn
 import numpy as np
 
+from readjax import arm as kin
+from readjax import camera as cam_lib
 from readjax import geometry as geo
+from readjax.arm import ArmChain
+from readjax.camera import CameraParams
 from readjax.config import VAEConfig
 from readjax.data import motion as motion_lib
 from readjax.models.vae import (MLP, LatentDecoderBody, MotionEncoder, MotionVAE, _batch_motion,
                                 kl_divergence, weighted_motion_loss)
-from readjax.sim import camera as cam_lib
-from readjax.sim import kinematics as kin
-from readjax.sim.camera import CameraParams
-from readjax.sim.kinematics import ArmChain
 
 MIN_DEPTH = 0.02  # metres; FK points closer to (or behind) the camera are projected at this depth
 

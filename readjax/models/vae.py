@@ -27,6 +27,7 @@ import numpy as np
 
 from readjax.config import VAEConfig
 from readjax.data import motion as motion_lib
+from readjax.data.motion import check_motion_shape
 
 LN_EPS = 1e-5  # PyTorch's LayerNorm default, as in the original transformer layers
 
@@ -110,13 +111,6 @@ class DecoderLayer(nn.Module):
 
 
 KEY_DIMS = {k: s.stop - s.start for k, s in motion_lib.KEYS.items()}
-
-
-def check_motion_shape(m, name: str = "motion") -> None:
-    """ValueError unless ``m`` has the static shape (B, 101, 10) (works on tracers)."""
-    shape = getattr(m, "shape", None)
-    if shape is None or len(shape) != 3 or tuple(shape[1:]) != (motion_lib.FRAMES, motion_lib.DIM):
-        raise ValueError(f"{name} must have shape (B, {motion_lib.FRAMES}, {motion_lib.DIM}), got {shape}")
 
 
 def motion_mse(pred: jax.Array, target: jax.Array) -> dict[str, jax.Array]:

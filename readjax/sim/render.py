@@ -11,8 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-DEPTH_NEAR = 0.3  # metres; the fixed planes of the normalised depth channel
-DEPTH_FAR = 2.5
+from readjax.camera import DEPTH_FAR, DEPTH_NEAR  # the depth planes live with the camera model
 
 
 def normalise_depth(depth_m: np.ndarray) -> np.ndarray:
