@@ -52,6 +52,27 @@ def load_train_data(data_root: str | Path, task: str, train_cfg: TrainConfig, im
     return ds.resized(image_size)
 
 
+def autoencoder_stage_spec(train: TrainConfig) -> StageSpec:
+    """The ``vae/`` stage (READ's and READ-L's motion autoencoder): the ``train.vae_*`` settings."""
+    return StageSpec(steps=train.vae_steps, batch_size=train.vae_batch, lr=train.vae_lr, ckpt_every=train.ckpt_every,
+                     log_every=train.log_every, seed=train.seed)
+
+
+def network_stage_spec(train: TrainConfig) -> StageSpec:
+    """Every method's main network stage (READ's, READ-O's and the VPSDEs' denoiser, READ-L's latent
+    denoiser, Deterministic's ResNet): ``train.steps``/``batch``/``lr``..., seed ``train.seed + 1``."""
+    return StageSpec(steps=train.steps, batch_size=train.batch, lr=train.lr, lr_decay=train.lr_decay,
+                     lr_decay_every=train.lr_decay_every, ckpt_every=train.ckpt_every, log_every=train.log_every,
+                     seed=train.seed + 1)
+
+
+def fit_stage(run_dir: Path, name: str, spec: StageSpec, config: dict, ds, params, loss_fn, batch_fn,
+              progress: bool, stop_at) -> None:
+    """Train (or resume) one stage of a run on the dataset ``ds``."""
+    Stage(run_dir, name, spec, config, ds.fingerprint).fit(params, loss_fn, batch_fn, progress=progress,
+                                                           stop_at=stop_at)
+
+
 def stage_params(run_dir: Path, name: str, spec: StageSpec, params_template, config: dict, fingerprint: str):
     """The final parameters of a finished stage (restored from its latest checkpoint)."""
     stage = Stage(run_dir, name, spec, config, fingerprint)
