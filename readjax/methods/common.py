@@ -54,6 +54,13 @@ def write_normalizer(run_dir: Path, stats) -> None:
                              "channels": list(motion_lib.KEYS)}, indent=1))
 
 
+def fit_normalizer(run_dir: Path, motions) -> tuple[np.ndarray, np.ndarray]:
+    """The training motions' stats (:func:`motion_stats`), recorded in the run (:func:`write_normalizer`)."""
+    stats = motion_stats(motions)
+    write_normalizer(run_dir, stats)
+    return stats
+
+
 def read_normalizer(run_dir) -> tuple[np.ndarray, np.ndarray]:
     f = Path(run_dir) / NORMALIZER_FILE
     if not f.exists():
@@ -119,7 +126,8 @@ def per_key_mse(pred: jax.Array, target: jax.Array) -> tuple[jax.Array, dict]:
     return sum(per_key.values()), per_key
 
 
-def check_n_steps(n_steps, allow_zero: bool = True, method: str = "this method", name: str = "n_steps") -> int:
+def check_n_steps(n_steps, allow_zero: bool = True, method: str = "this method",
+                  name: str = "n_steps") -> int:
     """The one check of N (sampler / refinement steps): a non-negative int, and >= 1 for a method that
     samples from noise (``allow_zero=False``). Returns it as an int. ``name``: what the caller calls it."""
     if isinstance(n_steps, (bool, np.bool_)) or not isinstance(n_steps, (int, np.integer)) or n_steps < 0:
@@ -146,6 +154,11 @@ class RunModel:
         self.camera = CameraParams.from_dict(self.spec["camera"])
         self.image_size = int(self.spec["image_size"])
         self.fingerprint = self.spec["dataset_fingerprint"]
+
+    def network_params(self, stage: str, template):
+        """The trained parameters of this run's network stage ``stage`` (``base.network_stage_spec``)."""
+        spec = base.network_stage_spec(self.configs["train"])
+        return base.stage_params(self.run_dir, stage, spec, template, self.cfg_dict, self.fingerprint)
 
 
 class DenoiserRunModel(RunModel):

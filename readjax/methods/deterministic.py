@@ -51,8 +51,9 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
             idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
             return {"image": ds.rgbd[idx], "motion": ds.motion[idx]}
 
-        base.fit_stage(run_dir, "deterministic", spec, cfg_dict, ds, init_model(model, jax.random.key(train_cfg.seed)),
-                       loss(model, train_cfg.augment), batch, progress, stop_at)
+        base.fit_stage(run_dir, "deterministic", spec, cfg_dict, ds,
+                       init_model(model, jax.random.key(train_cfg.seed)), loss(model, train_cfg.augment),
+                       batch, progress, stop_at)
     return base.read_run(run_dir)
 
 
@@ -65,9 +66,8 @@ class DeterministicModel(common.RunModel):
     def __init__(self, run_dir):
         super().__init__(run_dir)
         self.model = model = build_model(self.configs)
-        self.params = base.stage_params(self.run_dir, "deterministic", base.network_stage_spec(self.configs["train"]),
-                                        init_model(model, jax.random.key(self.configs["train"].seed)),
-                                        self.cfg_dict, self.fingerprint)
+        self.params = self.network_params("deterministic",
+                                          init_model(model, jax.random.key(self.configs["train"].seed)))
         self._predict = jax.jit(lambda p, x: model.apply(p, x))
 
     def encode(self, images: jax.Array) -> jax.Array:

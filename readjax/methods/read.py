@@ -94,8 +94,8 @@ def fit_autoencoder(run_dir: Path, ds, ae, key, train_cfg, cfg_dict: dict, progr
         idx = base.sample_indices(len(ds), vspec.batch_size, train_cfg.seed, step)
         return {"motion": ds.motion[idx], "joints": ds.joints[idx]}
 
-    base.fit_stage(run_dir, "vae", vspec, vae_stage_config(cfg_dict), ds, init_ae(ae, key), ae_loss(ae), vae_batch,
-                   progress, stop_at)
+    base.fit_stage(run_dir, "vae", vspec, vae_stage_config(cfg_dict), ds, init_ae(ae, key), ae_loss(ae),
+                   vae_batch, progress, stop_at)
 
 
 def autoencoder_params(run_dir: Path, ae, key, train_cfg, cfg_dict: dict, fingerprint: str):
@@ -153,7 +153,8 @@ class ReadModel(common.DenoiserRunModel):
         train_cfg = configs["train"]
         k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
         cfg_dict = config.configs_to_dict(configs)
-        self.ae_params = autoencoder_params(self.run_dir, self.ae, k_ae, train_cfg, cfg_dict, self.fingerprint)
+        self.ae_params = autoencoder_params(self.run_dir, self.ae, k_ae, train_cfg, cfg_dict,
+                                            self.fingerprint)
         self.den_params = base.stage_params(self.run_dir, "read", base.network_stage_spec(train_cfg),
                                             init_denoiser(self.den, self.image_size, k_den), cfg_dict,
                                             self.fingerprint)
@@ -182,5 +183,5 @@ class ReadModel(common.DenoiserRunModel):
 
     def generate(self, features, retrieved, key, n_steps: int) -> jax.Array:
         n = common.check_n_steps(n_steps, allow_zero=True, method="read")
-        return refine(self.ae, self.ae_params, self.den, self.den_params, features, jnp.asarray(retrieved), key,
-                      n, self.configs["sde"], latent=self.latent)
+        return refine(self.ae, self.ae_params, self.den, self.den_params, features, jnp.asarray(retrieved),
+                      key, n, self.configs["sde"], latent=self.latent)

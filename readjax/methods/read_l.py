@@ -130,8 +130,7 @@ class ReadLModel(common.DenoiserRunModel):
         template = {"denoiser": init_latent_denoiser(self.den, self.image_size, k_den),
                     "ae": read_lib.init_ae(self.ae, k_ae)}
         # the read_l checkpoint holds the (frozen) autoencoder it was trained with
-        params = base.stage_params(self.run_dir, "read_l", base.network_stage_spec(train_cfg), template,
-                                   self.cfg_dict, self.fingerprint)
+        params = self.network_params("read_l", template)
         self.den_params, self.ae_params = params["denoiser"], params["ae"]
         self.latent = latent_lib.for_run(self.run_dir, self.configs["sde"])
         self._setup_encoder()

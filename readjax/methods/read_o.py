@@ -76,8 +76,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     image_size = configs["denoiser"].image_size
     task, run_dir, ds, configs, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset,
                                                           SECTIONS, image_size)
-    stats = common.motion_stats(ds.motion)
-    common.write_normalizer(run_dir, stats)
+    stats = common.fit_normalizer(run_dir, ds.motion)
     train_cfg = configs["train"]
     den = build_denoiser(configs)
     if "read_o" in stages:
@@ -118,10 +117,8 @@ class ReadOModel(common.DenoiserRunModel):
         super().__init__(run_dir)
         self.sampler = self.configs["read_o"].sampler
         self.den = build_denoiser(self.configs)
-        self.den_params = base.stage_params(self.run_dir, "read_o", base.network_stage_spec(self.configs["train"]),
-                                            init_denoiser(self.den, self.image_size,
-                                                          jax.random.key(self.configs["train"].seed + 1)),
-                                            self.cfg_dict, self.fingerprint)
+        key = jax.random.key(self.configs["train"].seed + 1)
+        self.den_params = self.network_params("read_o", init_denoiser(self.den, self.image_size, key))
         self.stats = tuple(jnp.asarray(s) for s in common.read_normalizer(self.run_dir))
         self._setup_encoder()
 

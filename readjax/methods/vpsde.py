@@ -76,8 +76,7 @@ def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: st
     image_size = configs["denoiser"].image_size
     task, run_dir, ds, configs, cfg_dict = common.prepare(method, task, data_root, run_dir, configs, preset,
                                                           SECTIONS, image_size)
-    stats = common.motion_stats(ds.motion)
-    common.write_normalizer(run_dir, stats)
+    stats = common.fit_normalizer(run_dir, ds.motion)
     train_cfg = configs["train"]
     den = build_denoiser(configs, cond)
     if method in stages:
@@ -151,10 +150,8 @@ class VPSDEModel(common.DenoiserRunModel):
         self.sampler = cfg.sampler
         self.guidance = cfg.guidance
         self.den = build_denoiser(self.configs, self.cond)
-        self.den_params = base.stage_params(self.run_dir, self.method, base.network_stage_spec(self.configs["train"]),
-                                            init_denoiser(self.den, self.image_size,
-                                                          jax.random.key(self.configs["train"].seed + 1)),
-                                            self.cfg_dict, self.fingerprint)
+        key = jax.random.key(self.configs["train"].seed + 1)
+        self.den_params = self.network_params(self.method, init_denoiser(self.den, self.image_size, key))
         self.stats = tuple(jnp.asarray(s) for s in common.read_normalizer(self.run_dir))
         self._setup_encoder()
 
