@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from experiments import _cli
-from readjax.config import REFINE_UPDATES
+from readjax.config import DEFAULT_N, REFINE_UPDATES
 
 
 def parser() -> argparse.ArgumentParser:
@@ -27,7 +27,7 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--run", required=True, help="a run folder from experiments.train")
     p.add_argument("--episodes", type=_cli.positive_int, default=100, help="test episodes (fixed seeds)")
-    p.add_argument("--N", type=int, default=None, help="refinement steps (default: 100)")
+    p.add_argument("--N", type=int, default=None, help=f"refinement steps (default: {DEFAULT_N})")
     p.add_argument("--no-refine", action="store_true", help="execute the retrieved motion (N = 0)")
     p.add_argument("--refine", default=None, choices=REFINE_UPDATES,
                    help="READ's refinement update (default: the run's sde.update): renoise = the paper's loop, "
@@ -71,8 +71,9 @@ def default_name(args, uses_retrieval: bool = True, iterative: bool = True, defa
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    if args.N is not None and args.N < 0:
-        raise ValueError(f"--N must be >= 0, got {args.N}")
+    from readjax.methods.common import check_n_steps
+    if args.N is not None:
+        check_n_steps(args.N, name="--N")
     from readjax import evaluation
     from readjax.data import store
     from readjax.data.generate import GenerateConfig, generate

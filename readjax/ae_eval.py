@@ -93,8 +93,8 @@ def load_autoencoder(run_dir: str | Path):
     camera = CameraParams.from_dict(spec["camera"])
     ae = make_autoencoder(configs["vae"], chain=tasks.make(spec["task"]).chain, camera=camera)
     k_ae, _ = jax.random.split(jax.random.key(configs["train"].seed))
-    params = base.stage_params(run_dir, "vae", read_lib.vae_spec(configs["train"]), read_lib.init_ae(ae, k_ae),
-                               read_lib.vae_stage_config(spec["configs"]), spec["dataset_fingerprint"])
+    params = read_lib.autoencoder_params(run_dir, ae, k_ae, configs["train"], spec["configs"],
+                                         spec["dataset_fingerprint"])
     return ae, params, spec
 
 

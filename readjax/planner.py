@@ -18,9 +18,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import retrieval, tasks
+from readjax.config import DEFAULT_N
 from readjax.data import motion as motion_lib
 from readjax.data import store
 from readjax.methods import load_model
+from readjax.methods.common import check_n_steps
 from readjax.sim.execute import ExecConfig, solve_waypoints
 
 
@@ -51,7 +53,7 @@ class Planner:
         self.task = self.spec["task"]
         self.image_size = model.image_size
         self.database = database
-        self.n_steps = 100 if n_steps is None else int(n_steps)
+        self.n_steps = DEFAULT_N if n_steps is None else int(n_steps)
         self.env = tasks.make(self.task)
         self.db_uv = np.asarray(motion_lib.uv(database.motion))
         self.db_tokens = model.database_tokens(database.rgbd, database.motion) if model.uses_retrieval else None
@@ -105,16 +107,14 @@ class Planner:
     def plan(self, rgbd, key: jax.Array, N: int | None = None, retrieval_method: str = "spe",
              gt_motion=None, rank: int = 1) -> Plan:
         """Plans for a batch of first frames (B, S, S, 4). N = 0 executes the retrieved motion."""
-        n = self.n_steps if N is None else N
-        if not isinstance(n, (int, np.integer)) or n < 0:
-            raise ValueError(f"N must be a non-negative integer, got {n!r}")
+        n = check_n_steps(self.n_steps if N is None else N, name="N")
         feats = self.encode(rgbd)
         if self.model.uses_retrieval or retrieval_method == "cheat":
             idx = self.retrieve(feats, retrieval_method, gt_motion, rank)
         else:  # methods without retrieval start from noise; report the first database entry
             idx = np.zeros(feats.shape[0], np.int64)
         m_r = jnp.asarray(self.database.motion[idx])
-        m = self.model.generate(feats, m_r, key, int(n))
+        m = self.model.generate(feats, m_r, key, n)
         return self._finish(np.asarray(m), np.asarray(m_r), idx)
 
     def _finish(self, m, m_r, idx) -> Plan:

@@ -23,7 +23,7 @@ from readjax.planner import Planner
 
 TEST_TIME = ("N",)
 TRAIN_KEYS = {"K": "train.K", "L": "sde.lam", "T": "sde.theta1"}
-DEFAULTS = {"N": 100, "K": 3, "L": 0.5, "T": 2.0}  # the paper's setting A
+DEFAULTS = {"N": config.DEFAULT_N, "K": 3, "L": 0.5, "T": 2.0}  # the paper's setting A
 CELL_PREFIX = "sweep_"  # a cell's evaluation is RUN/eval/<CELL_PREFIX>N<n>.json (reports list it by sweep)
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from readjax.config.sections import _positive
+from readjax.config.sections import DEFAULT_N, _positive
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class VPSDEConfig:
     train_eps: float = 1e-5
     sample_eps: float = 1e-3
     sampler: str = "ode"
-    sample_steps: int = 100
+    sample_steps: int = DEFAULT_N
     guidance: float = 1.0
     cond_drop: float = 0.1
 

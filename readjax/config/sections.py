@@ -124,6 +124,7 @@ class DenoiserConfig:
 
 
 REFINE_UPDATES = ("renoise", "cold", "cold_anchor")
+DEFAULT_N = 100  # sampler / refinement steps when none are asked for (the paper's setting A)
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,13 @@
-"""What every method's training shares: the run folder (``run.json``), dataset preparation and
-host-side batch sampling that is a pure function of the step (so resuming is exact). The training
-configuration and presets live with the other configs in ``readjax.config``."""
+"""What every method's training shares: the shape of a method (:class:`Method`, :class:`MethodModel`),
+the run folder (``run.json``), dataset preparation, the stage specs and host-side batch sampling
+that is a pure function of the step (so resuming is exact). The training configuration and presets
+live with the other configs in ``readjax.config``."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -14,6 +16,40 @@ from readjax.config import TrainConfig
 from readjax.data import store
 from readjax.training import (CheckpointError, Stage, StageSpec, TrainState, batch_indices, make_optimizer,
                               with_new_defaults)
+
+
+@runtime_checkable
+class Method(Protocol):
+    """A method module of ``readjax.methods.METHODS``: its training stages (``STAGES``, the folders of
+    a run, trained in this order) and ``train``, which prepares the run (``common.prepare``: dataset,
+    ``run.json``) and then fits each stage named in ``stages`` (resuming from its latest checkpoint),
+    returning run.json. Its trained model is the registry's class (a :class:`MethodModel`)."""
+
+    STAGES: tuple[str, ...]
+
+    def train(self, task: str, data_root, run_dir, configs: dict, preset: str, stages=...,
+              progress: bool = True, stop_at: int | None = None) -> dict: ...
+
+
+@runtime_checkable
+class MethodModel(Protocol):
+    """The trained model of a run, as the planner uses it (``common.RunModel`` and subclasses).
+
+    ``encode(images)`` -> per-image features (computed once); ``generate(features, retrieved, key,
+    n_steps)`` -> motions (B, 101, 10), ``retrieved`` the retrieved motions (the start of refinement,
+    the condition, or only the batch shape), ``n_steps`` N (checked with ``common.check_n_steps``;
+    ignored when ``iterative`` is False). Retrieval-based methods (``uses_retrieval``) also offer
+    ``database_tokens(images, motions)`` and ``spe_distances(features, db_uv, db_tokens)``."""
+
+    uses_retrieval: bool
+    iterative: bool
+    run_dir: Any
+    spec: dict
+    image_size: int
+
+    def encode(self, images): ...
+
+    def generate(self, features, retrieved, key, n_steps: int): ...
 
 
 def write_run(run_dir: Path, spec: dict) -> None:
@@ -50,6 +86,27 @@ def load_train_data(data_root: str | Path, task: str, train_cfg: TrainConfig, im
         raise ValueError(f"the dataset's images are {ds.image_size}px; the model needs {image_size}px, which "
                          f"must divide it (generate with --image-size {image_size} or a multiple)")
     return ds.resized(image_size)
+
+
+def autoencoder_stage_spec(train: TrainConfig) -> StageSpec:
+    """The ``vae/`` stage (READ's and READ-L's motion autoencoder): the ``train.vae_*`` settings."""
+    return StageSpec(steps=train.vae_steps, batch_size=train.vae_batch, lr=train.vae_lr,
+                     ckpt_every=train.ckpt_every, log_every=train.log_every, seed=train.seed)
+
+
+def network_stage_spec(train: TrainConfig) -> StageSpec:
+    """Every method's main network stage (READ's, READ-O's and the VPSDEs' denoiser, READ-L's latent
+    denoiser, Deterministic's ResNet): ``train.steps``/``batch``/``lr``..., seed ``train.seed + 1``."""
+    return StageSpec(steps=train.steps, batch_size=train.batch, lr=train.lr, lr_decay=train.lr_decay,
+                     lr_decay_every=train.lr_decay_every, ckpt_every=train.ckpt_every,
+                     log_every=train.log_every, seed=train.seed + 1)
+
+
+def fit_stage(run_dir: Path, name: str, spec: StageSpec, config: dict, ds, params, loss_fn, batch_fn,
+              progress: bool, stop_at) -> None:
+    """Train (or resume) one stage of a run on the dataset ``ds``."""
+    Stage(run_dir, name, spec, config, ds.fingerprint).fit(params, loss_fn, batch_fn, progress=progress,
+                                                           stop_at=stop_at)
 
 
 def stage_params(run_dir: Path, name: str, spec: StageSpec, params_template, config: dict, fingerprint: str):

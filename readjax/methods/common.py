@@ -25,6 +25,7 @@ from readjax import config, retrieval, tasks
 from readjax.data import motion as motion_lib
 from readjax.methods import base
 from readjax.models.denoiser import Denoiser
+from readjax.models.vae import motion_mse
 from readjax.sim.camera import CameraParams
 from readjax.training import CheckpointError
 
@@ -51,6 +52,13 @@ def write_normalizer(run_dir: Path, stats) -> None:
         return
     f.write_text(json.dumps({"mean": mean.tolist(), "std": std.tolist(), "std_floor": STD_FLOOR,
                              "channels": list(motion_lib.KEYS)}, indent=1))
+
+
+def fit_normalizer(run_dir: Path, motions) -> tuple[np.ndarray, np.ndarray]:
+    """The training motions' stats (:func:`motion_stats`), recorded in the run (:func:`write_normalizer`)."""
+    stats = motion_stats(motions)
+    write_normalizer(run_dir, stats)
+    return stats
 
 
 def read_normalizer(run_dir) -> tuple[np.ndarray, np.ndarray]:
@@ -91,31 +99,39 @@ def real_uv(x: jax.Array, stats) -> jax.Array:
 
 # ------------------------------------------------------------------ training helpers
 
-def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: str, sections, image_size: int):
-    """Load the training set and write run.json (recording only ``sections`` + train).
+def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: str, sections, image_size: int,
+            adjust=None):
+    """Load the training set and write run.json (recording only ``sections`` + train; None: READ's
+    sections). ``adjust(configs, ds) -> configs`` fills data-dependent config values before they
+    are recorded.
 
-    Returns (task, run_dir, dataset, cfg_dict).
+    Returns (task, run_dir, dataset, configs, cfg_dict).
     """
     task = tasks.canonical_name(task)
     run_dir = Path(run_dir)
     ds = base.load_train_data(data_root, task, configs["train"], image_size)
+    if adjust is not None:
+        configs = adjust(configs, ds)
     cfg_dict = config.configs_to_dict(configs, sections)
     spec = {"method": method, "task": task, "preset": preset, "configs": cfg_dict,
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
             "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
     base.write_run(run_dir, spec)
-    return task, run_dir, ds, cfg_dict
+    return task, run_dir, ds, configs, cfg_dict
 
 
 def per_key_mse(pred: jax.Array, target: jax.Array) -> tuple[jax.Array, dict]:
     """Sum over the motion keys of each key's MSE (READ's and the released baselines' reduction)."""
-    per_key = {k: jnp.mean((pred[..., s] - target[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
+    per_key = motion_mse(pred, target)
     return sum(per_key.values()), per_key
 
 
-def check_n_steps(n_steps, allow_zero: bool, method: str) -> int:
+def check_n_steps(n_steps, allow_zero: bool = True, method: str = "this method",
+                  name: str = "n_steps") -> int:
+    """The one check of N (sampler / refinement steps): a non-negative int, and >= 1 for a method that
+    samples from noise (``allow_zero=False``). Returns it as an int. ``name``: what the caller calls it."""
     if isinstance(n_steps, (bool, np.bool_)) or not isinstance(n_steps, (int, np.integer)) or n_steps < 0:
-        raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+        raise ValueError(f"{name} must be a non-negative int, got {n_steps!r}")
     if n_steps == 0 and not allow_zero:
         raise ValueError(f"{method} samples from noise: it needs N >= 1 sampler steps (N = 0 means 'execute the "
                          f"retrieved motion', which only retrieval-based methods have)")
@@ -138,6 +154,11 @@ class RunModel:
         self.camera = CameraParams.from_dict(self.spec["camera"])
         self.image_size = int(self.spec["image_size"])
         self.fingerprint = self.spec["dataset_fingerprint"]
+
+    def network_params(self, stage: str, template):
+        """The trained parameters of this run's network stage ``stage`` (``base.network_stage_spec``)."""
+        spec = base.network_stage_spec(self.configs["train"])
+        return base.stage_params(self.run_dir, stage, spec, template, self.cfg_dict, self.fingerprint)
 
 
 class DenoiserRunModel(RunModel):

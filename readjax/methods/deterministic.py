@@ -12,9 +12,7 @@ import jax.numpy as jnp
 
 from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb
-from readjax.methods.read import denoiser_spec
 from readjax.models.resnet import DeterministicPlanner
-from readjax.training import Stage
 
 METHOD = "deterministic"
 SECTIONS = ("resnet",)
@@ -42,20 +40,20 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train the Deterministic baseline for a task (resumes from the latest checkpoint)."""
     image_size = configs["resnet"].input_size
-    task, run_dir, ds, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS,
-                                                 image_size)
+    task, run_dir, ds, configs, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset,
+                                                          SECTIONS, image_size)
     train_cfg = configs["train"]
     model = build_model(configs)
     if "deterministic" in stages:
-        spec = denoiser_spec(train_cfg)
+        spec = base.network_stage_spec(train_cfg)
 
         def batch(step):
             idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
             return {"image": ds.rgbd[idx], "motion": ds.motion[idx]}
 
-        Stage(run_dir, "deterministic", spec, cfg_dict, ds.fingerprint).fit(
-            init_model(model, jax.random.key(train_cfg.seed)), loss(model, train_cfg.augment), batch,
-            progress=progress, stop_at=stop_at)
+        base.fit_stage(run_dir, "deterministic", spec, cfg_dict, ds,
+                       init_model(model, jax.random.key(train_cfg.seed)), loss(model, train_cfg.augment),
+                       batch, progress, stop_at)
     return base.read_run(run_dir)
 
 
@@ -68,14 +66,14 @@ class DeterministicModel(common.RunModel):
     def __init__(self, run_dir):
         super().__init__(run_dir)
         self.model = model = build_model(self.configs)
-        self.params = base.stage_params(self.run_dir, "deterministic", denoiser_spec(self.configs["train"]),
-                                        init_model(model, jax.random.key(self.configs["train"].seed)),
-                                        self.cfg_dict, self.fingerprint)
+        self.params = self.network_params("deterministic",
+                                          init_model(model, jax.random.key(self.configs["train"].seed)))
         self._predict = jax.jit(lambda p, x: model.apply(p, x))
 
     def encode(self, images: jax.Array) -> jax.Array:
         """The predicted motions (B, 101, 10): this model's per-image 'features'."""
         return self._predict(self.params, images)
 
-    def generate(self, features, m_r, key, n_steps=None) -> jax.Array:
+    def generate(self, features, retrieved, key, n_steps: int) -> jax.Array:
+        """The prediction ``encode`` made; ``retrieved``, ``key`` and ``n_steps`` are ignored."""
         return features

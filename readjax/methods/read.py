@@ -18,8 +18,7 @@ from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb
 from readjax.models.denoiser import Denoiser
 from readjax.models.kinematic_vae import make_autoencoder
-from readjax.sim.camera import CameraParams
-from readjax.training import Stage, StageSpec
+from readjax.models.vae import weighted_motion_loss
 
 STAGES = ("vae", "read")
 
@@ -37,17 +36,6 @@ def init_denoiser(den, image_size: int, key):
     k1, k2 = jax.random.split(key)
     return den.init({"params": k1, "dropout": k2}, jnp.zeros((1, image_size, image_size, 4)),
                     jnp.zeros((1, motion_lib.FRAMES, motion_lib.DIM)), jnp.zeros((1,)))
-
-
-def vae_spec(train) -> StageSpec:
-    return StageSpec(steps=train.vae_steps, batch_size=train.vae_batch, lr=train.vae_lr, ckpt_every=train.ckpt_every,
-                     log_every=train.log_every, seed=train.seed)
-
-
-def denoiser_spec(train) -> StageSpec:
-    return StageSpec(steps=train.steps, batch_size=train.batch, lr=train.lr, lr_decay=train.lr_decay,
-                     lr_decay_every=train.lr_decay_every, ckpt_every=train.ckpt_every, log_every=train.log_every,
-                     seed=train.seed + 1)
 
 
 VAE_TRAIN_FIELDS = ("episodes", "vae_steps", "vae_batch", "vae_lr", "seed", "ckpt_every", "log_every")
@@ -81,8 +69,7 @@ def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict, l
         t = irsde.sample_time(k_t, (m.shape[0],), sde)
         m_t = dec(irsde.marginal_sample(k_n, z0, z_r, t, sde))
         pred = den.apply(params, image, m_t, t, train=True, rngs={"dropout": k_drop})
-        per_key = {k: jnp.mean((pred[..., s] - m[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
-        return sum(weights[k] * v for k, v in per_key.items()), per_key
+        return weighted_motion_loss(pred, m, weights)
 
     return loss_fn
 
@@ -101,14 +88,20 @@ def with_motion_stats(configs: dict, motions) -> dict:
 
 def fit_autoencoder(run_dir: Path, ds, ae, key, train_cfg, cfg_dict: dict, progress: bool, stop_at) -> None:
     """The ``vae/`` stage (shared by READ and READ-L, and by runs differing only in K, L, T)."""
-    vspec = vae_spec(train_cfg)
+    vspec = base.autoencoder_stage_spec(train_cfg)
 
     def vae_batch(step):
         idx = base.sample_indices(len(ds), vspec.batch_size, train_cfg.seed, step)
         return {"motion": ds.motion[idx], "joints": ds.joints[idx]}
 
-    Stage(run_dir, "vae", vspec, vae_stage_config(cfg_dict), ds.fingerprint).fit(
-        init_ae(ae, key), ae_loss(ae), vae_batch, progress=progress, stop_at=stop_at)
+    base.fit_stage(run_dir, "vae", vspec, vae_stage_config(cfg_dict), ds, init_ae(ae, key), ae_loss(ae),
+                   vae_batch, progress, stop_at)
+
+
+def autoencoder_params(run_dir: Path, ae, key, train_cfg, cfg_dict: dict, fingerprint: str):
+    """The trained autoencoder of a run's ``vae/`` stage (READ and READ-L)."""
+    return base.stage_params(run_dir, "vae", base.autoencoder_stage_spec(train_cfg), init_ae(ae, key),
+                             vae_stage_config(cfg_dict), fingerprint)
 
 
 def fit_latent_stats(run_dir: Path, ae, ae_params, motions, sde):
@@ -124,34 +117,23 @@ def fit_latent_stats(run_dir: Path, ae, ae_params, motions, sde):
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ for a task; each stage resumes from its latest checkpoint. Returns run.json."""
-    task = tasks.canonical_name(task)
-    run_dir = Path(run_dir)
-    train_cfg = configs["train"]
     image_size = configs["denoiser"].image_size
-    ds = base.load_train_data(data_root, task, train_cfg, image_size)
-    configs = with_motion_stats(configs, ds.motion)
-    env = tasks.make(task)
-    ae, den = build_modules(configs, env.chain, ds.camera)
-    cfg_dict = config.configs_to_dict(configs)
-    spec = {"method": "read", "task": task, "preset": preset, "configs": cfg_dict,
-            "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
-            "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
-    base.write_run(run_dir, spec)
-    key = jax.random.key(train_cfg.seed)
-    k_ae, k_den = jax.random.split(key)
-    vspec = vae_spec(train_cfg)
-    ae_cfg = vae_stage_config(cfg_dict)
+    task, run_dir, ds, configs, cfg_dict = common.prepare(
+        "read", task, data_root, run_dir, configs, preset, None, image_size,
+        adjust=lambda c, ds: with_motion_stats(c, ds.motion))
+    train_cfg = configs["train"]
+    ae, den = build_modules(configs, tasks.make(task).chain, ds.camera)
+    k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
     if "vae" in stages:
         fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
     if "read" in stages:
-        ae_params = base.stage_params(run_dir, "vae", vspec, init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
+        ae_params = autoencoder_params(run_dir, ae, k_ae, train_cfg, cfg_dict, ds.fingerprint)
         latent = fit_latent_stats(run_dir, ae, ae_params, ds.motion, configs["sde"])
-        dspec = denoiser_spec(train_cfg)
+        dspec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
-        read_batch = base.paired_batch(ds, dspec, pairs)
         loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights, latent)
-        Stage(run_dir, "read", dspec, cfg_dict, ds.fingerprint).fit(
-            init_denoiser(den, image_size, k_den), loss, read_batch, progress=progress, stop_at=stop_at)
+        base.fit_stage(run_dir, "read", dspec, cfg_dict, ds, init_denoiser(den, image_size, k_den), loss,
+                       base.paired_batch(ds, dspec, pairs), progress, stop_at)
     return base.read_run(run_dir)
 
 
@@ -159,28 +141,25 @@ class ReadModel(common.DenoiserRunModel):
     """A trained READ run, behind the interface every method's model offers the planner:
 
     ``encode(images)`` -> per-image features (computed once), ``tokens(features, uv)`` -> image
-    features along motions (SPE retrieval), ``generate(features, m_r, key, n_steps)`` -> motions.
+    features along motions (SPE retrieval), ``generate(features, retrieved, key, n_steps)`` -> motions.
     """
 
     uses_retrieval = True
 
     def __init__(self, run_dir: str | Path):
-        self.run_dir = Path(run_dir)
-        self.spec = base.read_run(self.run_dir)
-        self.configs = configs = config.configs_from_dict(self.spec["configs"])
-        self.camera = CameraParams.from_dict(self.spec["camera"])
-        self.image_size = int(self.spec["image_size"])
-        env = tasks.make(self.spec["task"])
-        self.ae, self.den = build_modules(configs, env.chain, self.camera)
-        k_ae, k_den = jax.random.split(jax.random.key(configs["train"].seed))
+        super().__init__(run_dir)
+        configs = self.configs
+        self.ae, self.den = build_modules(configs, tasks.make(self.spec["task"]).chain, self.camera)
+        train_cfg = configs["train"]
+        k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
         cfg_dict = config.configs_to_dict(configs)
-        fp = self.spec["dataset_fingerprint"]
-        self.ae_params = base.stage_params(self.run_dir, "vae", vae_spec(configs["train"]), init_ae(self.ae, k_ae),
-                                           vae_stage_config(cfg_dict), fp)
-        self.den_params = base.stage_params(self.run_dir, "read", denoiser_spec(configs["train"]),
-                                            init_denoiser(self.den, self.image_size, k_den), cfg_dict, fp)
+        self.ae_params = autoencoder_params(self.run_dir, self.ae, k_ae, train_cfg, cfg_dict,
+                                            self.fingerprint)
+        self.den_params = base.stage_params(self.run_dir, "read", base.network_stage_spec(train_cfg),
+                                            init_denoiser(self.den, self.image_size, k_den), cfg_dict,
+                                            self.fingerprint)
         self.latent = latent_lib.for_run(self.run_dir, configs["sde"])
-        self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
+        self._setup_encoder()
 
     @classmethod
     def random(cls, task: str, configs: dict, camera, key: jax.Array) -> "ReadModel":
@@ -194,7 +173,7 @@ class ReadModel(common.DenoiserRunModel):
         self.ae_params, self.den_params = init_ae(self.ae, k_ae), init_denoiser(self.den, self.image_size, k_den)
         self.latent = (latent_lib.LatentStats.identity(configs["vae"].latent_dim)
                        if configs["sde"].latent_norm else None)
-        self._encode = jax.jit(lambda p, x: self.den.apply(p, x, method="encode_image"))
+        self._setup_encoder()
         return self
 
     def set_refine_update(self, update: str) -> None:
@@ -202,6 +181,7 @@ class ReadModel(common.DenoiserRunModel):
         The trained weights do not depend on it."""
         self.configs = dict(self.configs, sde=dataclasses.replace(self.configs["sde"], update=update))
 
-    def generate(self, features, m_r, key, n_steps: int) -> jax.Array:
-        return refine(self.ae, self.ae_params, self.den, self.den_params, features, jnp.asarray(m_r), key,
-                      int(n_steps), self.configs["sde"], latent=self.latent)
+    def generate(self, features, retrieved, key, n_steps: int) -> jax.Array:
+        n = common.check_n_steps(n_steps, allow_zero=True, method="read")
+        return refine(self.ae, self.ae_params, self.den, self.den_params, features, jnp.asarray(retrieved),
+                      key, n, self.configs["sde"], latent=self.latent)

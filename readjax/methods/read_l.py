@@ -31,7 +31,6 @@ from readjax.methods import read as read_lib
 from readjax.methods.augment import augment_rgb
 from readjax.models.kinematic_vae import make_autoencoder
 from readjax.models.latent_denoiser import LatentDenoiser
-from readjax.training import Stage
 
 METHOD = "read_l"
 SECTIONS = ("vae", "denoiser", "sde")
@@ -77,26 +76,22 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ-L for a task: the autoencoder (as READ's), then the latent denoiser."""
     image_size = configs["denoiser"].image_size
-    task, run_dir, ds, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS,
-                                                 image_size)
+    task, run_dir, ds, configs, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset,
+                                                          SECTIONS, image_size)
     train_cfg = configs["train"]
-    env = tasks.make(task)
-    ae, lden = build_modules(configs, env.chain, ds.camera)
+    ae, lden = build_modules(configs, tasks.make(task).chain, ds.camera)
     k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
-    vspec = read_lib.vae_spec(train_cfg)
-    ae_cfg = read_lib.vae_stage_config(cfg_dict)
     if "vae" in stages:
         read_lib.fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
     if "read_l" in stages:
-        ae_params = base.stage_params(run_dir, "vae", vspec, read_lib.init_ae(ae, k_ae), ae_cfg, ds.fingerprint)
+        ae_params = read_lib.autoencoder_params(run_dir, ae, k_ae, train_cfg, cfg_dict, ds.fingerprint)
         latent = read_lib.fit_latent_stats(run_dir, ae, ae_params, ds.motion, configs["sde"])
-        spec = read_lib.denoiser_spec(train_cfg)
+        spec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
-        batch = base.paired_batch(ds, spec, pairs)
         params = {"denoiser": init_latent_denoiser(lden, image_size, k_den), "ae": ae_params}
-        Stage(run_dir, "read_l", spec, cfg_dict, ds.fingerprint).fit(
-            params, read_l_loss(ae, lden, configs["sde"], train_cfg.augment, latent), batch, progress=progress,
-            stop_at=stop_at)
+        base.fit_stage(run_dir, "read_l", spec, cfg_dict, ds, params,
+                       read_l_loss(ae, lden, configs["sde"], train_cfg.augment, latent),
+                       base.paired_batch(ds, spec, pairs), progress, stop_at)
     return base.read_run(run_dir)
 
 
@@ -135,15 +130,14 @@ class ReadLModel(common.DenoiserRunModel):
         template = {"denoiser": init_latent_denoiser(self.den, self.image_size, k_den),
                     "ae": read_lib.init_ae(self.ae, k_ae)}
         # the read_l checkpoint holds the (frozen) autoencoder it was trained with
-        params = base.stage_params(self.run_dir, "read_l", read_lib.denoiser_spec(train_cfg), template,
-                                   self.cfg_dict, self.fingerprint)
+        params = self.network_params("read_l", template)
         self.den_params, self.ae_params = params["denoiser"], params["ae"]
         self.latent = latent_lib.for_run(self.run_dir, self.configs["sde"])
         self._setup_encoder()
 
-    def generate(self, features, m_r, key, n_steps: int = 100) -> jax.Array:
+    def generate(self, features, retrieved, key, n_steps: int) -> jax.Array:
         n = common.check_n_steps(n_steps, allow_zero=True, method=METHOD)
-        m_r = jnp.asarray(m_r)
+        m_r = jnp.asarray(retrieved)
         if n == 0:
             return m_r
         return refine(self.ae, self.ae_params, self.den, self.den_params, features, m_r, key, n,

@@ -30,9 +30,7 @@ from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde, taskspace
 from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb
-from readjax.methods.read import denoiser_spec
 from readjax.models.denoiser import Denoiser
-from readjax.training import Stage
 
 METHOD = "read_o"
 SECTIONS = ("denoiser", "sde", "read_o")
@@ -76,19 +74,18 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ-O (the ``read_o.sampler``'s target) for a task; resumes from the latest checkpoint."""
     image_size = configs["denoiser"].image_size
-    task, run_dir, ds, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS,
-                                                 image_size)
-    stats = common.motion_stats(ds.motion)
-    common.write_normalizer(run_dir, stats)
+    task, run_dir, ds, configs, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset,
+                                                          SECTIONS, image_size)
+    stats = common.fit_normalizer(run_dir, ds.motion)
     train_cfg = configs["train"]
     den = build_denoiser(configs)
     if "read_o" in stages:
-        spec = denoiser_spec(train_cfg)
+        spec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
         batch = base.paired_batch(ds, spec, pairs, norm=common.batch_stats(stats, spec.batch_size))
-        Stage(run_dir, "read_o", spec, cfg_dict, ds.fingerprint).fit(
-            init_denoiser(den, image_size, jax.random.key(train_cfg.seed + 1)),
-            read_o_loss(den, configs["sde"], train_cfg.augment), batch, progress=progress, stop_at=stop_at)
+        base.fit_stage(run_dir, "read_o", spec, cfg_dict, ds,
+                       init_denoiser(den, image_size, jax.random.key(train_cfg.seed + 1)),
+                       read_o_loss(den, configs["sde"], train_cfg.augment), batch, progress, stop_at)
     return base.read_run(run_dir)
 
 
@@ -120,16 +117,14 @@ class ReadOModel(common.DenoiserRunModel):
         super().__init__(run_dir)
         self.sampler = self.configs["read_o"].sampler
         self.den = build_denoiser(self.configs)
-        self.den_params = base.stage_params(self.run_dir, "read_o", denoiser_spec(self.configs["train"]),
-                                            init_denoiser(self.den, self.image_size,
-                                                          jax.random.key(self.configs["train"].seed + 1)),
-                                            self.cfg_dict, self.fingerprint)
+        key = jax.random.key(self.configs["train"].seed + 1)
+        self.den_params = self.network_params("read_o", init_denoiser(self.den, self.image_size, key))
         self.stats = tuple(jnp.asarray(s) for s in common.read_normalizer(self.run_dir))
         self._setup_encoder()
 
-    def generate(self, features, m_r, key, n_steps: int = 100) -> jax.Array:
+    def generate(self, features, retrieved, key, n_steps: int) -> jax.Array:
         n = common.check_n_steps(n_steps, allow_zero=True, method=METHOD)
-        m_r = jnp.asarray(m_r)
+        m_r = jnp.asarray(retrieved)
         if n == 0:
             return m_r
         return refine(self.den, self.den_params, features, self.stats, m_r, key, n, self.configs["sde"])

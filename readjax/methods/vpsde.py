@@ -27,9 +27,7 @@ from readjax.data import motion as motion_lib
 from readjax.diffusion import vpsde as vp
 from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb
-from readjax.methods.read import denoiser_spec
 from readjax.models.denoiser import Denoiser
-from readjax.training import Stage
 
 METHOD = "vpsde"
 SECTIONS = ("denoiser", "vpsde")
@@ -76,14 +74,13 @@ def eps_loss(den: Denoiser, cfg: VPSDEConfig, augment: bool):
 def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: str, stages, progress, stop_at,
                 cond: bool) -> dict:
     image_size = configs["denoiser"].image_size
-    task, run_dir, ds, cfg_dict = common.prepare(method, task, data_root, run_dir, configs, preset, SECTIONS,
-                                                 image_size)
-    stats = common.motion_stats(ds.motion)
-    common.write_normalizer(run_dir, stats)
+    task, run_dir, ds, configs, cfg_dict = common.prepare(method, task, data_root, run_dir, configs, preset,
+                                                          SECTIONS, image_size)
+    stats = common.fit_normalizer(run_dir, ds.motion)
     train_cfg = configs["train"]
     den = build_denoiser(configs, cond)
     if method in stages:
-        spec = denoiser_spec(train_cfg)
+        spec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K) if cond else None
         norm = common.batch_stats(stats, spec.batch_size)
 
@@ -94,9 +91,9 @@ def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: st
                 out["retrieved"] = ds.motion[base.neighbour_choice(pairs, idx, spec.seed, step)]
             return out
 
-        Stage(run_dir, method, spec, cfg_dict, ds.fingerprint).fit(
-            init_denoiser(den, image_size, jax.random.key(train_cfg.seed + 1)),
-            eps_loss(den, configs["vpsde"], train_cfg.augment), batch, progress=progress, stop_at=stop_at)
+        base.fit_stage(run_dir, method, spec, cfg_dict, ds,
+                       init_denoiser(den, image_size, jax.random.key(train_cfg.seed + 1)),
+                       eps_loss(den, configs["vpsde"], train_cfg.augment), batch, progress, stop_at)
     return base.read_run(run_dir)
 
 
@@ -140,8 +137,7 @@ def sample(den: Denoiser, den_params, features, stats, m_r, key, n_steps: int, c
 
 
 class VPSDEModel(common.DenoiserRunModel):
-    """A trained VPSDE run. ``sampler`` ("ode"/"sde") and ``default_steps`` (the config's N, used
-    when ``generate`` gets ``n_steps=None``) may be changed on the instance."""
+    """A trained VPSDE run. ``sampler`` ("ode"/"sde") may be changed on the instance."""
 
     uses_retrieval = False
     method = METHOD
@@ -152,20 +148,16 @@ class VPSDEModel(common.DenoiserRunModel):
         cfg = self.configs["vpsde"]
         self.vp_cfg = cfg
         self.sampler = cfg.sampler
-        self.default_steps = cfg.sample_steps
         self.guidance = cfg.guidance
         self.den = build_denoiser(self.configs, self.cond)
-        self.den_params = base.stage_params(self.run_dir, self.method, denoiser_spec(self.configs["train"]),
-                                            init_denoiser(self.den, self.image_size,
-                                                          jax.random.key(self.configs["train"].seed + 1)),
-                                            self.cfg_dict, self.fingerprint)
+        key = jax.random.key(self.configs["train"].seed + 1)
+        self.den_params = self.network_params(self.method, init_denoiser(self.den, self.image_size, key))
         self.stats = tuple(jnp.asarray(s) for s in common.read_normalizer(self.run_dir))
         self._setup_encoder()
 
-    def generate(self, features, m_r, key, n_steps=None) -> jax.Array:
-        n = self.default_steps if n_steps is None else n_steps
-        n = common.check_n_steps(n, allow_zero=self.cond, method=self.method)
-        m_r = jnp.asarray(m_r)
+    def generate(self, features, retrieved, key, n_steps: int) -> jax.Array:
+        n = common.check_n_steps(n_steps, allow_zero=self.cond, method=self.method)
+        m_r = jnp.asarray(retrieved)
         if n == 0:
             return m_r
         return sample(self.den, self.den_params, features, self.stats, m_r, key, n, self.vp_cfg, self.sampler,

@@ -29,8 +29,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
 
 
 class VPSDECGModel(vpsde.VPSDEModel):
-    """A trained VPSDE+CG run; ``guidance`` (w), ``sampler`` and ``default_steps`` may be changed on
-    the instance."""
+    """A trained VPSDE+CG run; ``guidance`` (w) and ``sampler`` may be changed on the instance."""
 
     uses_retrieval = True
     method = METHOD

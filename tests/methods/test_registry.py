@@ -11,7 +11,7 @@ import pytest
 
 from readjax import config, diffusion
 from readjax import methods
-from readjax.methods import common
+from readjax.methods import base, common
 
 METHOD_NAMES = {"read", "read_o", "read_l", "deterministic", "vpsde", "vpsde_cg"}
 
@@ -33,6 +33,31 @@ def test_registry():
     assert methods.module("vpsde_cg").VPSDECGModel.uses_retrieval
     with pytest.raises(ValueError, match="unknown method"):
         methods.module("nope")
+
+
+def test_every_method_has_the_common_shape():
+    """Every registered method satisfies base.Method, its model class base.MethodModel's interface,
+    with one generate signature (features, retrieved, key, n_steps) and no default N of its own."""
+    for name in methods.names():
+        mod = methods.module(name)
+        assert isinstance(mod, base.Method), name
+        cls = getattr(mod, methods.METHODS[name][1])
+        for attr in ("uses_retrieval", "iterative", "encode", "generate"):
+            assert hasattr(cls, attr), (name, attr)
+        params = inspect.signature(cls.generate).parameters
+        assert list(params) == ["self", "features", "retrieved", "key", "n_steps"], name
+        assert params["n_steps"].default is inspect.Parameter.empty, name
+        if cls.uses_retrieval:
+            assert hasattr(cls, "database_tokens") and hasattr(cls, "spe_distances"), name
+
+
+def test_check_n_steps():
+    assert common.check_n_steps(3) == 3 and common.check_n_steps(0) == 0
+    for bad in (-1, 1.5, True, "3", None):
+        with pytest.raises(ValueError, match="N must be a non-negative int"):
+            common.check_n_steps(bad, name="N")
+    with pytest.raises(ValueError, match="samples from noise"):
+        common.check_n_steps(0, allow_zero=False, method="vpsde")
 
 
 def _option(parser: argparse.ArgumentParser, flag: str) -> argparse.Action:
