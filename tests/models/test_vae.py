@@ -42,6 +42,17 @@ def test_shapes_and_posterior_mean_code(vae, batch):
     assert rec.shape == (8, 101, 10)
 
 
+def test_batched_code_and_decode_equal_one_at_a_time(vae, batch):
+    """A motion's code and a code's decoding do not depend on the rest of the batch."""
+    model, params, fn = vae
+    code, decode = jitted(model, "code"), fn["decode"]
+    z = code(params, batch["motion"])
+    rec = decode(params, z)
+    for i in (0, 3, 7):
+        np.testing.assert_allclose(code(params, batch["motion"][i:i + 1])[0], z[i], atol=1e-5)
+        np.testing.assert_allclose(decode(params, z[i:i + 1])[0], rec[i], atol=1e-5)
+
+
 def test_latent_projection_when_latent_dim_differs_from_width(batch):
     """latent_dim != width adds linear maps (checked abstractly: shapes only, nothing compiled)."""
     model = MotionVAE(dataclasses.replace(TINY_VAE, latent_dim=8))
