@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax.data import motion as motion_lib
+from readjax.diffusion.latent import codec
 from readjax.diffusion.refine import refine
 
 DEFAULT_NS = (0, 1, 10, 100)
@@ -68,8 +69,7 @@ def clean_input_errors(planner, images: np.ndarray, gt: np.ndarray, ts=CLEAN_TS,
     end-point errors against M. A denoiser without bias keeps them at the autoencoder's own error
     (t = 0 row, ``t=None``) at small t; anything above is what the loop would add at every step."""
     model = planner.model
-    enc = lambda m: model.ae.apply(model.ae_params, m, method="code")  # noqa: E731
-    dec = lambda z: model.ae.apply(model.ae_params, z, method="decode")  # noqa: E731
+    enc, dec = codec(model.ae, model.ae_params, model.latent)
     roundtrip, outs = [], {t: [] for t in ts}
     for s in range(0, len(images), batch_size):
         idx = np.arange(s, s + batch_size) % len(images)

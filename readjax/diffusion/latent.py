@@ -19,7 +19,6 @@ Table 7 values (0.1, 0.5, 1.0) assume. This is the scale factor of latent diffus
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import jax
@@ -27,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from readjax.training import CheckpointError
+from readjax import stats_record
 
 STATS_FILE = "latent_stats.json"
 STD_FLOOR = 1e-3  # a collapsed dimension (constant code) stays finite; its noise in raw units is tiny
@@ -72,25 +71,17 @@ def measure(ae, ae_params, motions: np.ndarray, chunk: int = 256) -> LatentStats
 
 def write(run_dir: str | Path, stats: LatentStats) -> None:
     """Record the stats in the run; a run that already holds different ones is refused (they are a
-    deterministic function of the trained autoencoder and the data, so a resumed run matches)."""
-    f = Path(run_dir) / STATS_FILE
-    if f.exists():
-        old = read(run_dir)
-        if not (np.allclose(old.mean, stats.mean, atol=1e-5) and np.allclose(old.std, stats.std, atol=1e-5)):
-            raise CheckpointError(f"{f} holds other latent statistics (was the autoencoder retrained?); use a "
-                                  f"new --out/--name or --restart")
-        return
-    f.write_text(json.dumps({"mean": np.asarray(stats.mean).tolist(), "std": np.asarray(stats.std).tolist(),
-                             "std_floor": STD_FLOOR}, indent=1))
+    deterministic function of the trained autoencoder and the data, so a resumed run matches; other
+    ones mean the autoencoder was retrained)."""
+    stats_record.write(Path(run_dir) / STATS_FILE, stats.mean, stats.std, what="latent statistics", atol=1e-5,
+                       std_floor=STD_FLOOR)
 
 
 def read(run_dir: str | Path) -> LatentStats:
-    f = Path(run_dir) / STATS_FILE
-    if not f.exists():
-        raise CheckpointError(f"{run_dir} has no {STATS_FILE} (its SDE runs on the standardised latent, "
-                              f"sde.latent_norm); train the run's diffusion stage first")
-    d = json.loads(f.read_text())
-    return LatentStats(jnp.asarray(d["mean"], jnp.float32), jnp.asarray(d["std"], jnp.float32))
+    mean, std = stats_record.read(Path(run_dir) / STATS_FILE, "latent statistics",
+                                  " (its SDE runs on the standardised latent, sde.latent_norm); train the "
+                                  "run's diffusion stage first")
+    return LatentStats(jnp.asarray(mean), jnp.asarray(std))
 
 
 def for_run(run_dir: str | Path, sde) -> LatentStats | None:

@@ -13,7 +13,6 @@ Denoiser's ``uv`` argument); its eps output is in normalised units.
 
 from __future__ import annotations
 
-import json
 from functools import partial
 from pathlib import Path
 
@@ -21,13 +20,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from readjax import config, retrieval, tasks
+from readjax import config, retrieval, stats_record, tasks
 from readjax.data import motion as motion_lib
 from readjax.methods import base
 from readjax.models.denoiser import Denoiser
 from readjax.models.vae import motion_mse
 from readjax.sim.camera import CameraParams
-from readjax.training import CheckpointError
 
 NORMALIZER_FILE = "normalizer.json"
 STD_FLOOR = 1e-2
@@ -43,15 +41,8 @@ def motion_stats(motions) -> tuple[np.ndarray, np.ndarray]:
 
 def write_normalizer(run_dir: Path, stats) -> None:
     """Record the stats; a run folder that already holds different ones is refused."""
-    mean, std = (np.asarray(s, np.float32) for s in stats)
-    f = Path(run_dir) / NORMALIZER_FILE
-    if f.exists():
-        old_mean, old_std = read_normalizer(run_dir)
-        if not (np.allclose(old_mean, mean, atol=1e-6) and np.allclose(old_std, std, atol=1e-6)):
-            raise CheckpointError(f"{f} holds other normalisation stats; use a new --out/--name or --restart")
-        return
-    f.write_text(json.dumps({"mean": mean.tolist(), "std": std.tolist(), "std_floor": STD_FLOOR,
-                             "channels": list(motion_lib.KEYS)}, indent=1))
+    stats_record.write(Path(run_dir) / NORMALIZER_FILE, *stats, what="normalisation stats", atol=1e-6,
+                       std_floor=STD_FLOOR, channels=list(motion_lib.KEYS))
 
 
 def fit_normalizer(run_dir: Path, motions) -> tuple[np.ndarray, np.ndarray]:
@@ -62,11 +53,7 @@ def fit_normalizer(run_dir: Path, motions) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_normalizer(run_dir) -> tuple[np.ndarray, np.ndarray]:
-    f = Path(run_dir) / NORMALIZER_FILE
-    if not f.exists():
-        raise CheckpointError(f"{run_dir} has no {NORMALIZER_FILE}; train the run first")
-    d = json.loads(f.read_text())
-    return np.asarray(d["mean"], np.float32), np.asarray(d["std"], np.float32)
+    return stats_record.read(Path(run_dir) / NORMALIZER_FILE, "normalisation stats", "; train the run first")
 
 
 def batch_stats(stats, batch_size: int) -> np.ndarray:

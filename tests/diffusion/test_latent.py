@@ -60,6 +60,9 @@ def test_record_round_trip_and_refusal(tmp_path, ae_and_motions):
     latent.write(tmp_path, stats)  # the same stats again (a resumed run): accepted
     with pytest.raises(CheckpointError, match="other latent statistics"):
         latent.write(tmp_path, latent.LatentStats(stats.mean + 0.1, stats.std))
+    (tmp_path / latent.STATS_FILE).write_text('{"mean": [0.0')  # a truncated file: one clear line
+    with pytest.raises(CheckpointError, match="is not a record of latent statistics"):
+        latent.for_run(tmp_path, sde_on)
 
 
 def test_refine_on_identity_stats_is_the_paper_loop(ae_and_motions):
