@@ -13,8 +13,10 @@ Denoiser's ``uv`` argument); its eps output is in normalised units.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -86,14 +88,37 @@ def real_uv(x: jax.Array, stats) -> jax.Array:
 
 # ------------------------------------------------------------------ training helpers
 
+@dataclass(frozen=True)
+class PreparedRun:
+    """A run folder ready to train (from :func:`prepare`): its task, folder, training set, the
+    configs (after ``adjust``) and what run.json records of them (``cfg_dict``)."""
+
+    task: str
+    run_dir: Path
+    ds: Any
+    configs: dict
+    cfg_dict: dict
+    image_size: int
+
+    @property
+    def train_cfg(self):
+        return self.configs["train"]
+
+    def fit(self, stage: str, spec: base.StageSpec, params, loss_fn, batch_fn, progress: bool, stop_at) -> None:
+        """Train (or resume) one stage of this run that records the run's configs."""
+        base.fit_stage(self.run_dir, stage, spec, self.cfg_dict, self.ds, params, loss_fn, batch_fn, progress,
+                       stop_at)
+
+    def result(self) -> dict:
+        """run.json, as every method's ``train`` returns it."""
+        return base.read_run(self.run_dir)
+
+
 def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: str, sections, image_size: int,
-            adjust=None):
+            adjust=None) -> PreparedRun:
     """Load the training set and write run.json (recording only ``sections`` + train; None: READ's
     sections). ``adjust(configs, ds) -> configs`` fills data-dependent config values before they
-    are recorded.
-
-    Returns (task, run_dir, dataset, configs, cfg_dict).
-    """
+    are recorded."""
     task = tasks.canonical_name(task)
     run_dir = Path(run_dir)
     ds = base.load_train_data(data_root, task, configs["train"], image_size)
@@ -104,7 +129,7 @@ def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: s
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
             "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
     base.write_run(run_dir, spec)
-    return task, run_dir, ds, configs, cfg_dict
+    return PreparedRun(task, run_dir, ds, configs, cfg_dict, image_size)
 
 
 def per_key_mse(pred: jax.Array, target: jax.Array) -> tuple[jax.Array, dict]:
@@ -165,7 +190,7 @@ class DenoiserRunModel(RunModel):
     def database_tokens(self, images: np.ndarray, motions: np.ndarray) -> np.ndarray:
         return database_features(self.den, self.den_params, images, motions)
 
-    def spe_distances(self, features, db_uv, db_tokens) -> np.ndarray:
+    def spe_distances(self, features, db_uv, db_tokens) -> jax.Array:
         return retrieval.spe_distances(self.den, self.den_params, features, db_uv, db_tokens)
 
 

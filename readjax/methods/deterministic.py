@@ -39,22 +39,18 @@ def loss(model: DeterministicPlanner, augment: bool):
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train the Deterministic baseline for a task (resumes from the latest checkpoint)."""
-    image_size = configs["resnet"].input_size
-    task, run_dir, ds, configs, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset,
-                                                          SECTIONS, image_size)
-    train_cfg = configs["train"]
-    model = build_model(configs)
+    run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["resnet"].input_size)
+    model = build_model(run.configs)
     if "deterministic" in stages:
-        spec = base.network_stage_spec(train_cfg)
+        spec, ds = base.network_stage_spec(run.train_cfg), run.ds
 
         def batch(step):
             idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
             return {"image": ds.rgbd[idx], "motion": ds.motion[idx]}
 
-        base.fit_stage(run_dir, "deterministic", spec, cfg_dict, ds,
-                       init_model(model, jax.random.key(train_cfg.seed)), loss(model, train_cfg.augment),
-                       batch, progress, stop_at)
-    return base.read_run(run_dir)
+        run.fit("deterministic", spec, init_model(model, jax.random.key(run.train_cfg.seed)),
+                loss(model, run.train_cfg.augment), batch, progress, stop_at)
+    return run.result()
 
 
 class DeterministicModel(common.RunModel):

@@ -114,27 +114,33 @@ def fit_latent_stats(run_dir: Path, ae, ae_params, motions, sde):
     return stats
 
 
+def prepare_autoencoder(run: common.PreparedRun, stages, progress: bool, stop_at, build=None):
+    """The first stage READ and READ-L share: build the modules (``build``, default READ's
+    :func:`build_modules`) and fit the autoencoder if ``"vae"`` is among ``stages``. Returns
+    (autoencoder, denoiser, autoencoder key, denoiser key)."""
+    ae, den = (build or build_modules)(run.configs, tasks.make(run.task).chain, run.ds.camera)
+    k_ae, k_den = jax.random.split(jax.random.key(run.train_cfg.seed))
+    if "vae" in stages:
+        fit_autoencoder(run.run_dir, run.ds, ae, k_ae, run.train_cfg, run.cfg_dict, progress, stop_at)
+    return ae, den, k_ae, k_den
+
+
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ for a task; each stage resumes from its latest checkpoint. Returns run.json."""
-    image_size = configs["denoiser"].image_size
-    task, run_dir, ds, configs, cfg_dict = common.prepare(
-        "read", task, data_root, run_dir, configs, preset, None, image_size,
-        adjust=lambda c, ds: with_motion_stats(c, ds.motion))
-    train_cfg = configs["train"]
-    ae, den = build_modules(configs, tasks.make(task).chain, ds.camera)
-    k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
-    if "vae" in stages:
-        fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
+    run = common.prepare("read", task, data_root, run_dir, configs, preset, None, configs["denoiser"].image_size,
+                         adjust=lambda c, ds: with_motion_stats(c, ds.motion))
+    ae, den, k_ae, k_den = prepare_autoencoder(run, stages, progress, stop_at)
     if "read" in stages:
-        ae_params = autoencoder_params(run_dir, ae, k_ae, train_cfg, cfg_dict, ds.fingerprint)
-        latent = fit_latent_stats(run_dir, ae, ae_params, ds.motion, configs["sde"])
+        ds, configs, train_cfg = run.ds, run.configs, run.train_cfg
+        ae_params = autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)
+        latent = fit_latent_stats(run.run_dir, ae, ae_params, ds.motion, configs["sde"])
         dspec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
         loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights, latent)
-        base.fit_stage(run_dir, "read", dspec, cfg_dict, ds, init_denoiser(den, image_size, k_den), loss,
-                       base.paired_batch(ds, dspec, pairs), progress, stop_at)
-    return base.read_run(run_dir)
+        run.fit("read", dspec, init_denoiser(den, run.image_size, k_den), loss, base.paired_batch(ds, dspec, pairs),
+                progress, stop_at)
+    return run.result()
 
 
 class ReadModel(common.DenoiserRunModel):

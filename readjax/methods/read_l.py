@@ -75,24 +75,18 @@ def read_l_loss(ae, lden: LatentDenoiser, sde: SDEConfig, augment: bool, latent=
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ-L for a task: the autoencoder (as READ's), then the latent denoiser."""
-    image_size = configs["denoiser"].image_size
-    task, run_dir, ds, configs, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset,
-                                                          SECTIONS, image_size)
-    train_cfg = configs["train"]
-    ae, lden = build_modules(configs, tasks.make(task).chain, ds.camera)
-    k_ae, k_den = jax.random.split(jax.random.key(train_cfg.seed))
-    if "vae" in stages:
-        read_lib.fit_autoencoder(run_dir, ds, ae, k_ae, train_cfg, cfg_dict, progress, stop_at)
+    run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size)
+    ae, lden, k_ae, k_den = read_lib.prepare_autoencoder(run, stages, progress, stop_at, build=build_modules)
     if "read_l" in stages:
-        ae_params = read_lib.autoencoder_params(run_dir, ae, k_ae, train_cfg, cfg_dict, ds.fingerprint)
-        latent = read_lib.fit_latent_stats(run_dir, ae, ae_params, ds.motion, configs["sde"])
+        ds, train_cfg, sde = run.ds, run.train_cfg, run.configs["sde"]
+        ae_params = read_lib.autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)
+        latent = read_lib.fit_latent_stats(run.run_dir, ae, ae_params, ds.motion, sde)
         spec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
-        params = {"denoiser": init_latent_denoiser(lden, image_size, k_den), "ae": ae_params}
-        base.fit_stage(run_dir, "read_l", spec, cfg_dict, ds, params,
-                       read_l_loss(ae, lden, configs["sde"], train_cfg.augment, latent),
-                       base.paired_batch(ds, spec, pairs), progress, stop_at)
-    return base.read_run(run_dir)
+        params = {"denoiser": init_latent_denoiser(lden, run.image_size, k_den), "ae": ae_params}
+        run.fit("read_l", spec, params, read_l_loss(ae, lden, sde, train_cfg.augment, latent),
+                base.paired_batch(ds, spec, pairs), progress, stop_at)
+    return run.result()
 
 
 @functools.partial(jax.jit, static_argnames=("ae", "lden", "n_steps", "sde", "t_end", "return_history"))

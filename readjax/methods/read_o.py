@@ -73,20 +73,17 @@ def read_o_loss(den: Denoiser, sde: SDEConfig, augment: bool):
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ-O (the ``read_o.sampler``'s target) for a task; resumes from the latest checkpoint."""
-    image_size = configs["denoiser"].image_size
-    task, run_dir, ds, configs, cfg_dict = common.prepare(METHOD, task, data_root, run_dir, configs, preset,
-                                                          SECTIONS, image_size)
-    stats = common.fit_normalizer(run_dir, ds.motion)
-    train_cfg = configs["train"]
-    den = build_denoiser(configs)
+    run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size)
+    stats = common.fit_normalizer(run.run_dir, run.ds.motion)
+    den = build_denoiser(run.configs)
     if "read_o" in stages:
+        ds, train_cfg = run.ds, run.train_cfg
         spec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
         batch = base.paired_batch(ds, spec, pairs, norm=common.batch_stats(stats, spec.batch_size))
-        base.fit_stage(run_dir, "read_o", spec, cfg_dict, ds,
-                       init_denoiser(den, image_size, jax.random.key(train_cfg.seed + 1)),
-                       read_o_loss(den, configs["sde"], train_cfg.augment), batch, progress, stop_at)
-    return base.read_run(run_dir)
+        run.fit("read_o", spec, init_denoiser(den, run.image_size, jax.random.key(train_cfg.seed + 1)),
+                read_o_loss(den, run.configs["sde"], train_cfg.augment), batch, progress, stop_at)
+    return run.result()
 
 
 @functools.partial(jax.jit, static_argnames=("den", "n_steps", "sde", "t_end", "return_history"))

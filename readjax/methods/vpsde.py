@@ -73,13 +73,11 @@ def eps_loss(den: Denoiser, cfg: VPSDEConfig, augment: bool):
 
 def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: str, stages, progress, stop_at,
                 cond: bool) -> dict:
-    image_size = configs["denoiser"].image_size
-    task, run_dir, ds, configs, cfg_dict = common.prepare(method, task, data_root, run_dir, configs, preset,
-                                                          SECTIONS, image_size)
-    stats = common.fit_normalizer(run_dir, ds.motion)
-    train_cfg = configs["train"]
-    den = build_denoiser(configs, cond)
+    run = common.prepare(method, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size)
+    stats = common.fit_normalizer(run.run_dir, run.ds.motion)
+    den = build_denoiser(run.configs, cond)
     if method in stages:
+        ds, train_cfg = run.ds, run.train_cfg
         spec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K) if cond else None
         norm = common.batch_stats(stats, spec.batch_size)
@@ -91,10 +89,9 @@ def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: st
                 out["retrieved"] = ds.motion[base.neighbour_choice(pairs, idx, spec.seed, step)]
             return out
 
-        base.fit_stage(run_dir, method, spec, cfg_dict, ds,
-                       init_denoiser(den, image_size, jax.random.key(train_cfg.seed + 1)),
-                       eps_loss(den, configs["vpsde"], train_cfg.augment), batch, progress, stop_at)
-    return base.read_run(run_dir)
+        run.fit(method, spec, init_denoiser(den, run.image_size, jax.random.key(train_cfg.seed + 1)),
+                eps_loss(den, run.configs["vpsde"], train_cfg.augment), batch, progress, stop_at)
+    return run.result()
 
 
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,

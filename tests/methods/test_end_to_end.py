@@ -76,3 +76,27 @@ def test_train_and_plan(data, name):
     if planner.model.uses_retrieval:
         retrieved = planner.plan(rgbd, jax.random.key(0), N=0)
         np.testing.assert_array_equal(retrieved.motion, retrieved.retrieved)
+
+
+def test_prepare_records_the_adjusted_configs(data):
+    """common.prepare: the run folder every method's train starts from. ``adjust`` sees the
+    training set before run.json is written, run.json records only the method's sections, and
+    ``result()`` is run.json as read back."""
+    from readjax import config
+    from readjax.methods import common
+
+    seen = []
+
+    def adjust(configs, ds):
+        seen.append(len(ds))
+        return config.override(configs, ["K=3"])
+
+    configs = config.presets("cpu")
+    run = common.prepare("deterministic", "RT", data / "data", data / "prep", configs, "cpu",
+                         ("resnet",), 64, adjust=adjust)
+    assert seen == [8] and run.task == "reach_target" and len(run.ds) == 8 and run.image_size == 64
+    assert run.train_cfg.K == 3 and run.configs["train"].K == 3
+    spec = run.result()
+    assert spec == base.read_run(data / "prep")
+    assert set(spec["configs"]) == {"resnet", "train"} and spec["configs"]["train"]["K"] == 3
+    assert spec["episodes"] == 8 and spec["dataset_fingerprint"] == run.ds.fingerprint
