@@ -98,6 +98,54 @@ def _estimate_call_s(timed: list[tuple[int, float]], n: int) -> float:
     return t1 + per_step * (n - n1)
 
 
+def slower_than(previous: dict, current: dict, factor: float = 2.0) -> list[str]:
+    """The planner cells and parts of ``current`` that take >= ``factor`` x the time they took in
+    ``previous`` (two bench JSONs; cells matched by preset, batch and N, parts by preset and batch).
+    A regression check for a benchmark run, not a unit test: only ratios within one machine mean
+    anything."""
+    flagged = []
+
+    def index(rows, keys):
+        return {tuple(r.get(k) for k in keys): r for r in rows if not r.get("skipped")}
+
+    for section, keys in (("cells", ("preset", "batch", "N")), ("parts", ("preset", "batch"))):
+        old = index(previous.get(section, []), keys)
+        for key, row in index(current.get(section, []), keys).items():
+            if key not in old:
+                continue
+            for field, value in row.items():
+                if not field.endswith("_ms") and field != "ms_per_call":
+                    continue
+                before = old[key].get(field)
+                if before and value >= factor * before:
+                    where = " ".join(f"{k}={v}" for k, v in zip(keys, key))
+                    flagged.append(f"{where} {field}: {before} -> {value} ({value / before:.1f}x)")
+    return flagged
+
+
+def planner_parts(planner, images, repeats: int) -> dict:
+    """Median ms per call of the plan's fixed parts, each timed alone after its compile: image
+    encoding, SPE retrieval over the database, one refinement step, and decoding + IK of the
+    result. (A plan = encode + retrieve + N steps + decode/IK, plus host glue.)"""
+    import jax
+    import numpy as np
+
+    feats = jax.block_until_ready(planner.encode(images))
+    idx = planner.retrieve(feats)
+    m_r = planner.db_motion[idx]
+    key = jax.random.key(0)
+    m1 = np.asarray(planner.model.generate(feats, m_r, key, 1))
+    fns = {"encode": lambda: jax.block_until_ready(planner.encode(images)),
+           "retrieve": lambda: planner.retrieve(feats),
+           "refine_N1": lambda: jax.block_until_ready(planner.model.generate(feats, m_r, key, 1)),
+           "decode_ik": lambda: planner._finish(m1, np.asarray(m_r), idx)}
+    out = {}
+    for name, fn in fns.items():
+        fn()
+        out[name + "_ms"] = round(1e3 * statistics.median(_time(fn, repeats)), 2)
+    return out
+
+
 def bench_planner(args) -> dict:
     """ms per plan (encode + SPE retrieval + N refinement steps + IK) with random parameters:
     latency does not depend on training. Cells predicted to exceed --max-seconds are skipped."""
@@ -134,6 +182,10 @@ def bench_planner(args) -> dict:
         timed: dict[int, list[tuple[int, float]]] = {}  # batch -> [(N, seconds per call)]
         for b in args.batch_sizes:
             images = rng.uniform(size=(b, size, size, 4)).astype(np.float32)
+            parts = planner_parts(planner, images, args.repeats)
+            results["parts"] = results.get("parts", []) + [{"preset": preset, "batch": b, **parts}]
+            print(f"{preset} B={b:<3} parts (ms per call): " + "  ".join(f"{k} {v:.1f}" for k, v in parts.items()),
+                  flush=True)
             for n in sorted(args.N):
                 est = _estimate_call_s(timed.get(b, []), n)
                 if est > args.max_seconds:
@@ -179,10 +231,14 @@ def parser() -> argparse.ArgumentParser:
     pl.add_argument("--max-seconds", type=float, default=120.0,
                     help="skip a cell whose single call would exceed this (e.g. the paper preset on a CPU)")
     pl.add_argument("--out", default="runs/bench/planner.json")
+    pl.add_argument("--compare", metavar="JSON",
+                    help="a previous planner JSON (e.g. docs/bench/planner_paper.json): list every cell or part "
+                         "that got >= --slower x slower, and exit 1 if any did")
+    pl.add_argument("--slower", type=float, default=2.0, help="the ratio --compare flags")
     return p
 
 
-def main(argv=None) -> None:
+def main(argv=None) -> int | None:
     args = parser().parse_args(argv)
     if args.what == "sim":
         from readjax import tasks
@@ -195,6 +251,13 @@ def main(argv=None) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
     print(f"wrote {out}")
+    if getattr(args, "compare", None):
+        flagged = slower_than(json.loads(Path(args.compare).read_text()), result, args.slower)
+        for line in flagged:
+            print(f"SLOWER: {line}")
+        print(f"{len(flagged)} cells/parts >= {args.slower}x slower than {args.compare}")
+        if flagged:
+            return 1
 
 
 if __name__ == "__main__":

@@ -55,8 +55,11 @@ class Planner:
         self.database = database
         self.n_steps = DEFAULT_N if n_steps is None else int(n_steps)
         self.env = tasks.make(self.task)
-        self.db_uv = np.asarray(motion_lib.uv(database.motion))
-        self.db_tokens = model.database_tokens(database.rgbd, database.motion) if model.uses_retrieval else None
+        # the retrieval database lives on the device: no copy per plan
+        self.db_motion = jnp.asarray(database.motion)
+        self.db_uv = motion_lib.uv(self.db_motion)
+        self.db_tokens = (jnp.asarray(model.database_tokens(database.rgbd, database.motion))
+                          if model.uses_retrieval else None)
         self._ik = jax.jit(jax.vmap(functools.partial(solve_waypoints, self.env, cfg=ExecConfig())))
 
     @classmethod
@@ -96,7 +99,7 @@ class Planner:
         if method == "spe":
             if not self.model.uses_retrieval:
                 raise ValueError(f"{self.spec['method']} has no retrieval features; use retrieval 'cheat' or none")
-            return np.argmin(self.model.spe_distances(features, self.db_uv, self.db_tokens), axis=1)
+            return np.asarray(jnp.argmin(self.model.spe_distances(features, self.db_uv, self.db_tokens), axis=1))
         if method == "cheat":
             if gt_motion is None:
                 raise ValueError("oracle ('cheat') retrieval needs the ground-truth motions (gt_motion=)")
@@ -113,7 +116,7 @@ class Planner:
             idx = self.retrieve(feats, retrieval_method, gt_motion, rank)
         else:  # methods without retrieval start from noise; report the first database entry
             idx = np.zeros(feats.shape[0], np.int64)
-        m_r = jnp.asarray(self.database.motion[idx])
+        m_r = self.db_motion[jnp.asarray(idx)]
         m = self.model.generate(feats, m_r, key, n)
         return self._finish(np.asarray(m), np.asarray(m_r), idx)
 

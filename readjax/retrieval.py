@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax.data import motion as motion_lib
+from readjax.models.denoiser import sample_features
 from readjax.sim.camera import CameraParams
 
 
@@ -64,30 +65,25 @@ def oracle_retrieve(cam: CameraParams, query_motions, db_motions, rank: int = 1)
 
 
 @partial(jax.jit, static_argnums=(0,))
-def _spe_block(den, den_params, feats, uv, f_db):
+def _spe(den, den_params, feats, db_uv, db_tokens):
+    """(B, N) distances. Per test image (``lax.map``, so memory does not grow with B): its
+    full-resolution feature map once (:meth:`Denoiser.full_features`), then plain bilinear samples
+    along all N candidates' tracks -- the same values as ``image_tokens`` per candidate, without
+    N copies of the image's features."""
+    n, t = db_uv.shape[:2]
+
     def one(fmap):
-        fm = jnp.broadcast_to(fmap, (uv.shape[0],) + fmap.shape)
-        g = den.apply(den_params, fm, uv, method="image_tokens")
-        return jnp.mean((g - f_db) ** 2, axis=(1, 2))
+        full = den.apply(den_params, fmap[None], method="full_features")
+        g = sample_features(full, db_uv.reshape(1, n * t, 2)).reshape(n, t, -1)
+        return jnp.mean((g - db_tokens) ** 2, axis=(1, 2))
 
     return jax.lax.map(one, feats)
 
 
-def spe_distances(den, den_params, test_features: jax.Array, db_uv, db_tokens, chunk: int = 256) -> np.ndarray:
+def spe_distances(den, den_params, test_features: jax.Array, db_uv, db_tokens) -> jax.Array:
     """(B, N) SPE distances mean((g_i - f_i)^2): g_i = the test image's features sampled along
     candidate i's uv, f_i = candidate i's own image features along its own motion (precomputed,
     ``db_tokens`` (N, 101, C)). ``den`` is the denoiser whose ``image_tokens`` samples features;
-    ``test_features`` (B, ...) come from its ``encode_image``."""
-    n = len(db_uv)
-    out = []
-    for s in range(0, n, chunk):
-        e = min(s + chunk, n)
-        uv = np.asarray(db_uv[s:e])
-        tok = np.asarray(db_tokens[s:e])
-        if e - s < chunk and n > chunk:  # pad the last chunk so one compile serves all
-            pad = chunk - (e - s)
-            uv = np.concatenate([uv, uv[:pad]])
-            tok = np.concatenate([tok, tok[:pad]])
-        d = np.asarray(_spe_block(den, den_params, test_features, jnp.asarray(uv), jnp.asarray(tok)))
-        out.append(d[:, : e - s])
-    return np.concatenate(out, axis=1)
+    ``test_features`` (B, ...) come from its ``encode_image``. One jitted call; pass ``db_uv`` and
+    ``db_tokens`` as device arrays (the planner keeps them on device) to avoid a copy per call."""
+    return _spe(den, den_params, jnp.asarray(test_features), jnp.asarray(db_uv), jnp.asarray(db_tokens))

@@ -12,3 +12,24 @@ def test_estimate_separates_fixed_cost_from_per_step_cost():
     assert _estimate_call_s([], 100) == 0.0  # nothing timed yet: run the cell
     assert _estimate_call_s([(1, 4.6)], 100) == pytest.approx(4.6)  # a lower bound, never an overestimate
     assert _estimate_call_s([(1, 5.0), (10, 4.0)], 100) == pytest.approx(4.0)  # noise never gives negative steps
+
+
+def test_regression_check_flags_only_what_got_twice_as_slow():
+    from experiments.bench import slower_than
+
+    old = {"cells": [{"preset": "cpu", "batch": 1, "N": 1, "ms_per_call": 100.0, "ms_per_plan": 100.0},
+                     {"preset": "cpu", "batch": 1, "N": 100, "ms_per_call": 1000.0},
+                     {"preset": "paper", "batch": 1, "N": 100, "skipped": True}],
+           "parts": [{"preset": "cpu", "batch": 1, "encode_ms": 10.0, "retrieve_ms": 5.0}]}
+    new = {"cells": [{"preset": "cpu", "batch": 1, "N": 1, "ms_per_call": 199.0, "ms_per_plan": 199.0},
+                     {"preset": "cpu", "batch": 1, "N": 100, "ms_per_call": 2000.0},
+                     {"preset": "paper", "batch": 1, "N": 100, "ms_per_call": 9e9},  # no old timing
+                     {"preset": "cpu", "batch": 64, "N": 1, "ms_per_call": 9e9}],  # a new cell
+           "parts": [{"preset": "cpu", "batch": 1, "encode_ms": 25.0, "retrieve_ms": 1.0}]}
+    flagged = slower_than(old, new)
+    assert len(flagged) == 2
+    assert flagged[0].startswith("preset=cpu batch=1 N=100 ms_per_call: 1000.0 -> 2000.0")
+    assert flagged[1].startswith("preset=cpu batch=1 encode_ms: 10.0 -> 25.0 (2.5x)")
+    assert slower_than(old, new, factor=3.0) == []
+    # the other way round only the part that was 5x faster before is flagged: faster is never flagged
+    assert slower_than(new, old) == ["preset=cpu batch=1 retrieve_ms: 1.0 -> 5.0 (5.0x)"]

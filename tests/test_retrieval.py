@@ -47,3 +47,34 @@ def test_oracle_ranks(cam):
     far = retrieval.oracle_retrieve(cam, q, db, rank=500)  # clipped to the farthest available
     order = retrieval.oracle_ranking(cam, q, db)
     assert list(far) == list(order[:, -1])
+
+
+def test_spe_distances_match_the_per_candidate_definition_and_find_the_own_demo():
+    """SPE: the one-jit form (the test image's full map, sampled along every candidate's track)
+    equals the definition mean((image_tokens(F_test, uv_i) - f_i)^2) per candidate, and a database
+    image used as the query retrieves its own demo (distance 0)."""
+    import jax
+    import jax.numpy as jnp
+
+    from readjax.methods.common import database_features
+    from readjax.models import Denoiser
+    from tests.models.helpers import TINY_DENOISER, chain_and_camera
+
+    _, cam32 = chain_and_camera(32)
+    den = Denoiser(TINY_DENOISER)
+    n = 6
+    motions = jnp.asarray(_motions(cam32, n, seed=3))
+    images = jax.random.uniform(jax.random.key(0), (n, 32, 32, 4))
+    params = den.init({"params": jax.random.key(1), "dropout": jax.random.key(2)}, images[:1], motions[:1],
+                      jnp.zeros((1,)))
+    db_uv = mo.uv(motions)
+    db_tok = database_features(den, params, np.asarray(images), np.asarray(motions), chunk=4)
+    feats = den.apply(params, images, method="encode_image")
+    d = np.asarray(retrieval.spe_distances(den, params, feats, db_uv, db_tok))
+    assert d.shape == (n, n)
+    for q in range(n):
+        fq = jnp.broadcast_to(feats[q], (n,) + feats.shape[1:])
+        g = den.apply(params, fq, db_uv, method="image_tokens")
+        np.testing.assert_allclose(d[q], np.mean((np.asarray(g) - db_tok) ** 2, axis=(1, 2)), rtol=1e-4, atol=1e-7)
+    np.testing.assert_allclose(np.diag(d), 0.0, atol=1e-8)
+    assert list(np.argmin(d, axis=1)) == list(range(n))

@@ -79,12 +79,14 @@ def depthwise_conv(x: jax.Array, kernel: jax.Array, impl: str = "auto") -> jax.A
         raise ValueError(f"impl must be 'auto', 'shift' or 'grouped', got {impl!r}")
     h, w = x.shape[1:3]
     xp = jnp.pad(x, ((0, 0),) + pads + ((0, 0),))
-    # k column shifts stacked once, then one multiply-and-reduce per kernel row: 3k ops instead
-    # of 3k^2 (a third of the compile time of the plain 49-term sum, and faster to run)
-    cols = jnp.stack([xp[:, :, j:j + w, :] for j in range(k)], axis=3)  # (B, H + k - 1, W, k, C)
+    # k*k shifted slices, each scaled per channel and summed: XLA fuses the whole sum into one
+    # elementwise loop. (Stacking the k column shifts and reducing over the stack, this module's
+    # earlier form, compiled faster but ran 40-370x slower forward and 2-10x slower backward on
+    # XLA-CPU; the paper-preset UNet trunk went from 8.0 s to 0.74 s per image: BENCHMARKS.md.)
     out = 0.0
     for i in range(k):
-        out = out + jnp.sum(cols[:, i:i + h] * kernel[i], axis=3)
+        for j in range(k):
+            out = out + xp[:, i:i + h, j:j + w, :] * kernel[i, j]
     return out
 
 

@@ -85,6 +85,7 @@ class Denoiser(nn.Module):
     * ``image_tokens(features, uv) -> (B, T, C)``: the full-resolution C-channel feature map
       bilinearly sampled at uv (B, T, 2) — what the transformer sees, and what SPE retrieval
       (METHOD.md section 7) compares; T is arbitrary;
+    * ``full_features(features) -> (B, H, W, C)``: the full map from a cache (SPE retrieval);
     * ``feature_map(image, train=False) -> (B, H, W, C)``: the full map itself (inspection, tests);
     * ``denoise(features, motion_t, t, cond=None, cond_keep=None, uv=None) -> (B, 101, 10)``;
     * ``__call__(image, motion_t, t, cond=None, cond_keep=None, train=False, uv=None)`` = encode + denoise
@@ -133,6 +134,12 @@ class Denoiser(nn.Module):
     def image_tokens(self, features, uv):
         """Samples (B, T, C) of the full-resolution feature map at uv (B, T, 2)."""
         return self.unet.head_at(features[..., : self.cfg.conv_dims[0]], uv)
+
+    def full_features(self, features):
+        """The full-resolution C-channel feature map (B, H, W, C) from a cache: what ``image_tokens``
+        samples. Worth materialising when one image is sampled along many tracks (SPE retrieval
+        over a database); ``image_tokens`` is cheaper for one track."""
+        return self.unet.head(features[..., : self.cfg.conv_dims[0]])
 
     def input_at(self, features, uv):
         """The input RGB-D (B, T, in_channels) bilinearly sampled at uv, from an ``input_skip``

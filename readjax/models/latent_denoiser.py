@@ -60,6 +60,10 @@ class LatentDenoiser(nn.Module):
     def image_tokens(self, features, uv):
         return self.unet.head_at(features, uv)
 
+    def full_features(self, features):
+        """The full-resolution feature map that ``image_tokens`` samples (SPE retrieval)."""
+        return self.unet.head(features)
+
     def denoise(self, features, z_t, uv, t):
         c = self.cfg
         d = c.d_model
