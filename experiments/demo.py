@@ -38,7 +38,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax import config, evaluation, tasks
+    from readjax import config, evaluation, tables, tasks
     from readjax.data import store
     from readjax.data.generate import GenerateConfig, generate
     from readjax.methods import read
@@ -68,7 +68,7 @@ def main(argv=None) -> None:
         r = evaluation.evaluate(planner, test, cfg, out_dir=run_dir / "eval", name=f"demo_N{n}")
         rows[name] = r["table"]
     truth = evaluation.replay_ground_truth(planner.env, test)
-    rows["expert motions replayed (must be 100)"] = evaluation.success_table({task: truth["success_rate"]})
+    rows["expert motions replayed (must be 100)"] = tables.success_table({task: truth["success_rate"]})
     print("[4/4] rendering the first frame of every task", flush=True)
     frames, labels = [], []
     for name in tasks.names():
@@ -77,7 +77,7 @@ def main(argv=None) -> None:
         labels.append(f"{env.code} {name}")
     label_grid(frames, labels).save(out / "first_frames.png")
     print()
-    print(evaluation.format_table(rows))
+    print(tables.format_table(rows))
     print(f"\nplans over the input images: {run_dir / 'eval' / f'demo_N{args.N}_overlay.png'}")
     print(f"rollout video: {run_dir / 'eval' / f'demo_N{args.N}_rollouts.mp4'}")
     print(f"loss curves: {run_dir / 'vae' / 'loss.png'}, {run_dir / 'read' / 'loss.png'}")

@@ -74,7 +74,7 @@ def main(argv=None) -> None:
     from readjax.methods.common import check_n_steps
     if args.N is not None:
         check_n_steps(args.N, name="--N")
-    from readjax import evaluation
+    from readjax import evaluation, tables
     from readjax.data import store
     from readjax.data.generate import GenerateConfig, generate
     from readjax.methods.base import read_run
@@ -106,7 +106,7 @@ def main(argv=None) -> None:
     result = evaluation.evaluate(planner, test_ds, cfg, out_dir=Path(args.run) / "eval", name=name,
                                  progress=not args.quiet)
     label = f"{result['method']} ({name})"
-    print(evaluation.format_table({label: result["table"]}))
+    print(tables.format_table({label: result["table"]}))
     print(f"success {100 * result['success_rate']:.1f}% over {result['episodes']} episodes; "
           f"results in {Path(args.run) / 'eval' / (name + '.json')}")
 

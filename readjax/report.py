@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from readjax import tasks
-from readjax.evaluation import success_table
+from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
 
 
