@@ -123,6 +123,39 @@ def slower_than(previous: dict, current: dict, factor: float = 2.0) -> list[str]
     return flagged
 
 
+def original_ratios(cells: list[dict], original_plans: list[dict], threads: int) -> list[dict]:
+    """Our paper-preset planner cells against the original READ's plan timings (the ``plans`` of
+    ``../shared/tools/orig_read_timing.py``) at the same batch, N and thread count: one row per
+    cell and original variant (``as_is``, ``cached``), ``speedup`` = original ms / our ms per call."""
+    orig = {(p["variant"], p["batch"], p["N"]): p for p in original_plans
+            if p.get("measured") and p.get("threads") == threads}
+    rows = []
+    for c in cells:
+        if c.get("skipped") or c.get("preset") != "paper":
+            continue
+        for variant in ("as_is", "cached"):
+            o = orig.get((variant, c["batch"], c["N"]))
+            if o:
+                rows.append({"batch": c["batch"], "N": c["N"], "variant": variant, "readjax_ms": c["ms_per_call"],
+                             "original_ms": o["median_ms"],
+                             "speedup": round(o["median_ms"] / c["ms_per_call"], 2)})
+    return rows
+
+
+def run_original(args, out_json: Path) -> dict:
+    """Time the original READ planner with the shared harness, in a subprocess (its own Python with
+    torch, see the harness's docstring), at this benchmark's batches, N and database size."""
+    import subprocess
+
+    cmd = [args.original_python, args.original_harness, args.vs_original, "--threads", str(args.threads),
+           "--batches", *map(str, args.batch_sizes), "--steps", *map(str, sorted(args.N)),
+           "--repeats", str(args.repeats), "--db-size", str(args.database), "--max-cell-s", str(args.max_seconds),
+           "--out", str(out_json)]
+    print("original READ:", " ".join(cmd), flush=True)
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    return json.loads(out_json.read_text())
+
+
 def planner_parts(planner, images, repeats: int) -> dict:
     """Median ms per call of the plan's fixed parts, each timed alone after its compile: image
     encoding, SPE retrieval over the database, one refinement step, and decoding + IK of the
@@ -231,6 +264,15 @@ def parser() -> argparse.ArgumentParser:
     pl.add_argument("--max-seconds", type=float, default=120.0,
                     help="skip a cell whose single call would exceed this (e.g. the paper preset on a CPU)")
     pl.add_argument("--out", default="runs/bench/planner.json")
+    pl.add_argument("--vs-original", metavar="READ_DIR",
+                    help="also time the original PyTorch READ (an exported copy of Obat2343/READ at the harness's "
+                         "commit) right after, with ../shared/tools/orig_read_timing.py, and report the speed-ups "
+                         "(paper preset cells)")
+    pl.add_argument("--original-python", default=sys.executable,
+                    help="the Python that runs the harness (needs torch, einops, yacs, timm: see the harness)")
+    pl.add_argument("--original-harness", default=str(Path(__file__).resolve().parents[2] / "shared" / "tools"
+                                                      / "orig_read_timing.py"))
+    pl.add_argument("--threads", type=int, default=2, help="torch threads for the original")
     pl.add_argument("--compare", metavar="JSON",
                     help="a previous planner JSON (e.g. docs/bench/planner_paper.json): list every cell or part "
                          "that got >= --slower x slower, and exit 1 if any did")
@@ -247,6 +289,14 @@ def main(argv=None) -> int | None:
         result = bench_sim(args)
     else:
         result = bench_planner(args)
+        if args.vs_original:
+            orig = run_original(args, Path(args.out).with_suffix(".original.json"))
+            result["original"] = {"harness": args.original_harness, "repo": args.vs_original,
+                                  "threads": args.threads, "plans": orig.get("plans", [])}
+            result["vs_original"] = original_ratios(result["cells"], orig.get("plans", []), args.threads)
+            for r in result["vs_original"]:
+                print(f"B={r['batch']:<3} N={r['N']:<4} readjax {r['readjax_ms']:9.1f} ms  original ({r['variant']}) "
+                      f"{r['original_ms']:9.1f} ms  -> {r['speedup']:.2f}x", flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))

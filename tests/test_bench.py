@@ -33,3 +33,18 @@ def test_regression_check_flags_only_what_got_twice_as_slow():
     assert slower_than(old, new, factor=3.0) == []
     # the other way round only the part that was 5x faster before is flagged: faster is never flagged
     assert slower_than(new, old) == ["preset=cpu batch=1 retrieve_ms: 1.0 -> 5.0 (5.0x)"]
+
+
+def test_original_ratios_pair_cells_by_batch_n_and_threads():
+    from experiments.bench import original_ratios
+
+    cells = [{"preset": "paper", "batch": 1, "N": 1, "ms_per_call": 500.0},
+             {"preset": "paper", "batch": 1, "N": 100, "ms_per_call": 2000.0},
+             {"preset": "cpu", "batch": 1, "N": 1, "ms_per_call": 50.0},  # not the original's size
+             {"preset": "paper", "batch": 64, "N": 100, "skipped": True}]
+    plans = [{"variant": "as_is", "threads": 2, "batch": 1, "N": 1, "measured": True, "median_ms": 650.0},
+             {"variant": "cached", "threads": 2, "batch": 1, "N": 100, "measured": True, "median_ms": 2400.0},
+             {"variant": "as_is", "threads": 1, "batch": 1, "N": 100, "measured": True, "median_ms": 1.0},
+             {"variant": "as_is", "threads": 2, "batch": 1, "N": 100, "measured": False}]
+    rows = original_ratios(cells, plans, threads=2)
+    assert [(r["N"], r["variant"], r["speedup"]) for r in rows] == [(1, "as_is", 1.3), (100, "cached", 1.2)]
