@@ -272,7 +272,7 @@ def parser() -> argparse.ArgumentParser:
                     help="the Python that runs the harness (needs torch, einops, yacs, timm: see the harness)")
     pl.add_argument("--original-harness", default=str(Path(__file__).resolve().parents[2] / "shared" / "tools"
                                                       / "orig_read_timing.py"))
-    pl.add_argument("--threads", type=int, default=2, help="torch threads for the original")
+    pl.add_argument("--threads", type=_cli.positive_int, default=2, help="torch threads for the original")
     pl.add_argument("--compare", metavar="JSON",
                     help="a previous planner JSON (e.g. docs/bench/planner_paper.json): list every cell or part "
                          "that got >= --slower x slower, and exit 1 if any did")
@@ -280,34 +280,64 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def check_planner_inputs(args) -> dict | None:
+    """Fail before any timing (minutes to hours) on a bad --compare or --vs-original: a missing or
+    unreadable file is a one-line error. Returns the --compare JSON (None without it)."""
+    previous = None
+    if args.compare:
+        path = Path(args.compare)
+        if not path.is_file():
+            raise FileNotFoundError(f"--compare: no benchmark JSON at {path}")
+        try:
+            previous = json.loads(path.read_text())
+        except json.JSONDecodeError as e:
+            raise ValueError(f"--compare: {path} is not JSON ({e})") from e
+        if not isinstance(previous, dict) or "cells" not in previous:
+            raise ValueError(f"--compare: {path} is not a planner benchmark JSON (no 'cells')")
+    if args.vs_original:
+        for what, path, ok in (("--vs-original", args.vs_original, Path(args.vs_original).is_dir()),
+                               ("--original-harness", args.original_harness, Path(args.original_harness).is_file()),
+                               ("--original-python", args.original_python, Path(args.original_python).is_file())):
+            if not ok:
+                raise FileNotFoundError(f"{what}: {path} does not exist")
+    return previous
+
+
+def write_json(result: dict, out: Path) -> None:
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2))
+    print(f"wrote {out}")
+
+
 def main(argv=None) -> int | None:
     args = parser().parse_args(argv)
+    out = Path(args.out)
     if args.what == "sim":
         from readjax import tasks
 
         args.tasks = list(tasks.names()) if args.tasks == ["all"] else [tasks.canonical_name(t) for t in args.tasks]
-        result = bench_sim(args)
-    else:
-        result = bench_planner(args)
-        if args.vs_original:
-            orig = run_original(args, Path(args.out).with_suffix(".original.json"))
-            result["original"] = {"harness": args.original_harness, "repo": args.vs_original,
-                                  "threads": args.threads, "plans": orig.get("plans", [])}
-            result["vs_original"] = original_ratios(result["cells"], orig.get("plans", []), args.threads)
-            for r in result["vs_original"]:
-                print(f"B={r['batch']:<3} N={r['N']:<4} readjax {r['readjax_ms']:9.1f} ms  original ({r['variant']}) "
-                      f"{r['original_ms']:9.1f} ms  -> {r['speedup']:.2f}x", flush=True)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2))
-    print(f"wrote {out}")
-    if getattr(args, "compare", None):
-        flagged = slower_than(json.loads(Path(args.compare).read_text()), result, args.slower)
+        write_json(bench_sim(args), out)
+        return None
+    previous = check_planner_inputs(args)
+    result = bench_planner(args)
+    write_json(result, out)  # kept even if the original's harness fails below
+    if args.vs_original:
+        orig = run_original(args, out.with_suffix(".original.json"))
+        result["original"] = {"harness": args.original_harness, "repo": args.vs_original,
+                              "threads": args.threads, "plans": orig.get("plans", [])}
+        result["vs_original"] = original_ratios(result["cells"], orig.get("plans", []), args.threads)
+        for r in result["vs_original"]:
+            print(f"B={r['batch']:<3} N={r['N']:<4} readjax {r['readjax_ms']:9.1f} ms  original ({r['variant']}) "
+                  f"{r['original_ms']:9.1f} ms  -> {r['speedup']:.2f}x", flush=True)
+        write_json(result, out)
+    if previous is not None:
+        flagged = slower_than(previous, result, args.slower)
         for line in flagged:
             print(f"SLOWER: {line}")
         print(f"{len(flagged)} cells/parts >= {args.slower}x slower than {args.compare}")
         if flagged:
             return 1
+    return None
 
 
 if __name__ == "__main__":

@@ -48,3 +48,20 @@ def test_original_ratios_pair_cells_by_batch_n_and_threads():
              {"variant": "as_is", "threads": 2, "batch": 1, "N": 100, "measured": False}]
     rows = original_ratios(cells, plans, threads=2)
     assert [(r["N"], r["variant"], r["speedup"]) for r in rows] == [(1, "as_is", 1.3), (100, "cached", 1.2)]
+
+
+def test_bad_compare_or_original_paths_fail_before_any_timing(tmp_path):
+    """A missing or broken --compare JSON and a missing --vs-original copy are one-line errors
+    (exit 2) raised before the benchmark runs, and nothing is written."""
+    from experiments import _cli
+    from experiments.bench import main
+
+    out = tmp_path / "planner.json"
+    base = ["planner", "--presets", "cpu", "--out", str(out)]
+    assert _cli.run(main, base + ["--compare", str(tmp_path / "missing.json")]) == 2
+    (tmp_path / "broken.json").write_text("{not json")
+    assert _cli.run(main, base + ["--compare", str(tmp_path / "broken.json")]) == 2
+    (tmp_path / "other.json").write_text('{"tasks": {}}')  # a sim benchmark, not a planner one
+    assert _cli.run(main, base + ["--compare", str(tmp_path / "other.json")]) == 2
+    assert _cli.run(main, base + ["--vs-original", str(tmp_path / "no_READ")]) == 2
+    assert not out.exists()
