@@ -12,6 +12,7 @@ Positions are 3D (world frame, recovered from uv and z with the dataset's camera
 
 from __future__ import annotations
 
+import warnings
 from functools import partial
 
 import jax
@@ -35,9 +36,16 @@ def _pair_features(cam: CameraParams, motions) -> np.ndarray:
     return np.asarray(feat.reshape(m.shape[0], -1), np.float64)
 
 
-def training_pairs(cam: CameraParams, motions, k: int) -> np.ndarray:
-    """(N, k) indices of each demo's k nearest OTHER demos (self excluded), nearest first."""
+def training_pairs(cam: CameraParams, motions, k: int, clamp: bool = False) -> np.ndarray:
+    """(N, k) indices of each demo's k nearest OTHER demos (self excluded), nearest first.
+
+    ``clamp``: a pool larger than the other demos (a preset's K on a small dataset) becomes all
+    of them, with a warning, instead of an error."""
     n = len(motions)
+    if clamp and n >= 2 and k > n - 1:
+        warnings.warn(f"K = {k} neighbours asked for, but the training set has {n} demos: using all "
+                      f"{n - 1} others", stacklevel=2)
+        k = n - 1
     if not 1 <= k < n:
         raise ValueError(f"K must be in [1, N-1] = [1, {n - 1}], got {k}")
     f = _pair_features(cam, motions)
@@ -67,14 +75,15 @@ def oracle_retrieve(cam: CameraParams, query_motions, db_motions, rank: int = 1)
 @partial(jax.jit, static_argnums=(0,))
 def _spe(den, den_params, feats, db_uv, db_tokens):
     """(B, N) distances. Per test image (``lax.map``, so memory does not grow with B): its
-    full-resolution feature map once (:meth:`Denoiser.full_features`), then plain bilinear samples
-    along all N candidates' tracks -- the same values as ``image_tokens`` per candidate, without
-    N copies of the image's features."""
+    full-resolution retrieval map once (:meth:`Denoiser.retrieval_map`), then plain bilinear samples
+    along all N candidates' tracks (embedded by ``retrieval_embed``) -- the same values as
+    ``retrieval_tokens`` per candidate, without N copies of the image's features."""
     n, t = db_uv.shape[:2]
 
     def one(fmap):
-        full = den.apply(den_params, fmap[None], method="full_features")
+        full = den.apply(den_params, fmap[None], method="retrieval_map")
         g = sample_features(full, db_uv.reshape(1, n * t, 2)).reshape(n, t, -1)
+        g = den.apply(den_params, g, method="retrieval_embed")
         return jnp.mean((g - db_tokens) ** 2, axis=(1, 2))
 
     return jax.lax.map(one, feats)
@@ -83,7 +92,7 @@ def _spe(den, den_params, feats, db_uv, db_tokens):
 def spe_distances(den, den_params, test_features: jax.Array, db_uv, db_tokens) -> jax.Array:
     """(B, N) SPE distances mean((g_i - f_i)^2): g_i = the test image's features sampled along
     candidate i's uv, f_i = candidate i's own image features along its own motion (precomputed,
-    ``db_tokens`` (N, 101, C)). ``den`` is the denoiser whose ``image_tokens`` samples features;
+    ``db_tokens`` (N, 101, C)). ``den`` is the denoiser whose ``retrieval_tokens`` are compared;
     ``test_features`` (B, ...) come from its ``encode_image``. One jitted call; pass ``db_uv`` and
     ``db_tokens`` as device arrays (the planner keeps them on device) to avoid a copy per call."""
     return _spe(den, den_params, jnp.asarray(test_features), jnp.asarray(db_uv), jnp.asarray(db_tokens))

@@ -36,6 +36,10 @@ def test_training_pairs_exclude_self_and_are_nearest(cam):
     assert pairs[0, 0] == 29 and pairs[29, 0] == 0
     with pytest.raises(ValueError, match="K must be"):
         retrieval.training_pairs(cam, m, 30)
+    with pytest.warns(UserWarning, match="using all"):  # a preset's K on a small dataset
+        everyone = retrieval.training_pairs(cam, m, 30, clamp=True)
+    assert everyone.shape == (len(m), len(m) - 1)
+    assert all(set(row) == set(range(len(m))) - {i} for i, row in enumerate(everyone))
 
 
 def test_oracle_ranks(cam):
@@ -49,10 +53,14 @@ def test_oracle_ranks(cam):
     assert list(far) == list(order[:, -1])
 
 
-def test_spe_distances_match_the_per_candidate_definition_and_find_the_own_demo():
+@pytest.mark.parametrize("input_skip", [False, True])
+def test_spe_distances_match_the_per_candidate_definition_and_find_the_own_demo(input_skip):
     """SPE: the one-jit form (the test image's full map, sampled along every candidate's track)
-    equals the definition mean((image_tokens(F_test, uv_i) - f_i)^2) per candidate, and a database
-    image used as the query retrieves its own demo (distance 0)."""
+    equals the definition mean((retrieval_tokens(F_test, uv_i) - f_i)^2) per candidate, and a
+    database image used as the query retrieves its own demo (distance 0); with input_skip the
+    compared tokens are the transformer's own (features + embedded input pixels)."""
+    import dataclasses
+
     import jax
     import jax.numpy as jnp
 
@@ -61,7 +69,11 @@ def test_spe_distances_match_the_per_candidate_definition_and_find_the_own_demo(
     from tests.models.helpers import TINY_DENOISER, chain_and_camera
 
     _, cam32 = chain_and_camera(32)
-    den = Denoiser(TINY_DENOISER)
+    cfg = dataclasses.replace(TINY_DENOISER, input_skip=input_skip)
+    if input_skip:  # standardised depth too: the normalisation must commute with the sampling
+        cfg = dataclasses.replace(cfg, motion_mean=(0.0, 0.0, 1.2) + (0.0,) * 7,
+                                  motion_std=(0.5, 0.5, 0.1) + (1.0,) * 7)
+    den = Denoiser(cfg)
     n = 6
     motions = jnp.asarray(_motions(cam32, n, seed=3))
     images = jax.random.uniform(jax.random.key(0), (n, 32, 32, 4))
@@ -74,7 +86,11 @@ def test_spe_distances_match_the_per_candidate_definition_and_find_the_own_demo(
     assert d.shape == (n, n)
     for q in range(n):
         fq = jnp.broadcast_to(feats[q], (n,) + feats.shape[1:])
-        g = den.apply(params, fq, db_uv, method="image_tokens")
+        g = den.apply(params, fq, db_uv, method="retrieval_tokens")
+        if input_skip:
+            np.testing.assert_allclose(g, den.apply(params, fq, db_uv, method="track_tokens"), atol=0)
+        else:
+            np.testing.assert_allclose(g, den.apply(params, fq, db_uv, method="image_tokens"), atol=0)
         np.testing.assert_allclose(d[q], np.mean((np.asarray(g) - db_tok) ** 2, axis=(1, 2)), rtol=1e-4, atol=1e-7)
     np.testing.assert_allclose(np.diag(d), 0.0, atol=1e-8)
     assert list(np.argmin(d, axis=1)) == list(range(n))

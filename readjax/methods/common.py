@@ -175,7 +175,7 @@ class RunModel:
 
 class DenoiserRunModel(RunModel):
     """A run whose image encoder is a READ-style denoiser ``self.den`` with params ``self.den_params``
-    (``encode_image`` / ``image_tokens``): image encoding and SPE retrieval features."""
+    (``encode_image`` / ``retrieval_tokens``): image encoding and SPE retrieval features."""
 
     den = None
     den_params = None
@@ -198,7 +198,7 @@ class DenoiserRunModel(RunModel):
 def database_tokens(den: Denoiser, den_params, images: jax.Array, motions: jax.Array) -> jax.Array:
     """Each database image's features sampled along its own motion (N, 101, C), for SPE retrieval."""
     feats = den.apply(den_params, images, method="encode_image")
-    return den.apply(den_params, feats, motion_lib.uv(motions), method="image_tokens")
+    return den.apply(den_params, feats, motion_lib.uv(motions), method="retrieval_tokens")
 
 
 def database_features(den, den_params, images: np.ndarray, motions: np.ndarray, chunk: int = 64) -> np.ndarray:

@@ -136,7 +136,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         ae_params = autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)
         latent = fit_latent_stats(run.run_dir, ae, ae_params, ds.motion, configs["sde"])
         dspec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
+        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
         loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights, latent)
         run.fit("read", dspec, init_denoiser(den, run.image_size, k_den), loss, base.paired_batch(ds, dspec, pairs),
                 progress, stop_at)

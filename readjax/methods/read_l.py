@@ -82,7 +82,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         ae_params = read_lib.autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)
         latent = read_lib.fit_latent_stats(run.run_dir, ae, ae_params, ds.motion, sde)
         spec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
+        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
         params = {"denoiser": init_latent_denoiser(lden, run.image_size, k_den), "ae": ae_params}
         run.fit("read_l", spec, params, read_l_loss(ae, lden, sde, train_cfg.augment, latent),
                 base.paired_batch(ds, spec, pairs), progress, stop_at)

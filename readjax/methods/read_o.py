@@ -79,7 +79,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     if "read_o" in stages:
         ds, train_cfg = run.ds, run.train_cfg
         spec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K)
+        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
         batch = base.paired_batch(ds, spec, pairs, norm=common.batch_stats(stats, spec.batch_size))
         run.fit("read_o", spec, init_denoiser(den, run.image_size, jax.random.key(train_cfg.seed + 1)),
                 read_o_loss(den, run.configs["sde"], train_cfg.augment), batch, progress, stop_at)

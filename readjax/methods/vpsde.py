@@ -79,7 +79,7 @@ def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: st
     if method in stages:
         ds, train_cfg = run.ds, run.train_cfg
         spec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K) if cond else None
+        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True) if cond else None
         norm = common.batch_stats(stats, spec.batch_size)
 
         def batch(step):

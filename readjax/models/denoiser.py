@@ -83,9 +83,12 @@ class Denoiser(nn.Module):
     * ``encode_image(image, train=False) -> features``: the per-image cache, the UNet trunk's
       output (B, H/4, W/4, conv_dims[0]) (see :mod:`readjax.models.convnext_unet`);
     * ``image_tokens(features, uv) -> (B, T, C)``: the full-resolution C-channel feature map
-      bilinearly sampled at uv (B, T, 2) — what the transformer sees, and what SPE retrieval
-      (METHOD.md section 7) compares; T is arbitrary;
-    * ``full_features(features) -> (B, H, W, C)``: the full map from a cache (SPE retrieval);
+      bilinearly sampled at uv (B, T, 2) (T is arbitrary);
+    * ``full_features(features) -> (B, H, W, C)``: the full map from a cache;
+    * ``track_tokens(features, uv) -> (B, T, d)``: the image tokens the transformer reads;
+    * ``retrieval_tokens(features, uv)``: what SPE compares (``image_tokens``; ``track_tokens``
+      with ``input_skip``), and ``retrieval_map(features)`` / ``retrieval_embed(samples)``, its
+      form for one image sampled along many tracks;
     * ``feature_map(image, train=False) -> (B, H, W, C)``: the full map itself (inspection, tests);
     * ``denoise(features, motion_t, t, cond=None, cond_keep=None, uv=None) -> (B, 101, 10)``;
     * ``__call__(image, motion_t, t, cond=None, cond_keep=None, train=False, uv=None)`` = encode + denoise
@@ -137,23 +140,75 @@ class Denoiser(nn.Module):
 
     def full_features(self, features):
         """The full-resolution C-channel feature map (B, H, W, C) from a cache: what ``image_tokens``
-        samples. Worth materialising when one image is sampled along many tracks (SPE retrieval
-        over a database); ``image_tokens`` is cheaper for one track."""
+        samples."""
         return self.unet.head(features[..., : self.cfg.conv_dims[0]])
 
-    def input_at(self, features, uv):
-        """The input RGB-D (B, T, in_channels) bilinearly sampled at uv, from an ``input_skip``
-        cache; depth in metres, standardised like the motion's z when motion stats exist."""
+    def track_tokens(self, features, uv):
+        """The image tokens the transformer reads along a track (B, T, d), before positions: the
+        sampled features (projected to d when C != d), plus the embedded input pixels with
+        ``input_skip``."""
+        img = self.image_tokens(features, uv)
+        if self.image_proj is not None:
+            img = self.image_proj(img)
+        if self.cfg.input_skip:
+            img = img + self.input_embed(self.input_at(features, uv))
+        return img
+
+    def retrieval_tokens(self, features, uv):
+        """What SPE retrieval (METHOD.md section 7) compares along a track: the UNet's features
+        (``image_tokens``, the paper); with ``input_skip`` the transformer's own image tokens
+        (``track_tokens``), which add the embedded input pixels, so retrieval sees the depth under
+        the track that the denoiser reads (beyond the paper, see README)."""
+        if self.cfg.input_skip:
+            return self.track_tokens(features, uv)
+        return self.image_tokens(features, uv)
+
+    def retrieval_map(self, features):
+        """A full-resolution map (B, H, W, C') whose bilinear samples, passed through
+        ``retrieval_embed``, equal ``retrieval_tokens``: worth materialising when one image is
+        sampled along many tracks (SPE over a database). The UNet's full map, followed by the
+        input pixels (normalised as ``input_at`` returns them) with ``input_skip``."""
+        full = self.full_features(features)
+        if not self.cfg.input_skip:
+            return full
+        b, hs, ws, _ = features.shape
+        s = HEAD_STRIDE
+        pix = self._input_pixels(features).reshape(b, hs, ws, s, s, -1).transpose(0, 1, 3, 2, 4, 5)
+        return jnp.concatenate([full, pix.reshape(b, hs * s, ws * s, -1)], axis=-1)
+
+    def retrieval_embed(self, samples):
+        """Samples (..., C') of ``retrieval_map`` -> ``retrieval_tokens``' values (the features are
+        linear in the map, the input embedding is applied after sampling, as in ``track_tokens``)."""
+        if not self.cfg.input_skip:
+            return samples
+        c = self.cfg.feature_channels
+        img = samples[..., :c]
+        if self.image_proj is not None:
+            img = self.image_proj(img)
+        return img + self.input_embed(samples[..., c:])
+
+    def _input_pixels(self, features):
+        """The cache's input pixels (B, H/4, W/4, 16 * in_channels), each pixel normalised as
+        ``input_at`` returns it (RGB centred, depth in metres, standardised like z when motion
+        stats exist). Normalising is affine per channel, so it commutes with bilinear sampling."""
         c = self.cfg
         b, hs, ws, _ = features.shape
         s, k = HEAD_STRIDE, c.in_channels
-        pix = features[..., c.conv_dims[0]:].reshape(b, hs, ws, s, s, k).transpose(0, 1, 3, 2, 4, 5)
-        x = sample_features(pix.reshape(b, hs * s, ws * s, k), uv)
+        x = features[..., c.conv_dims[0]:].reshape(b, hs, ws, s * s, k)
         depth = DEPTH_NEAR + (DEPTH_FAR - DEPTH_NEAR) * x[..., 3:4]
         if c.motion_std:
             z = motion_lib.KEYS["z"].start
             depth = (depth - c.motion_mean[z]) / c.motion_std[z]
-        return jnp.concatenate([x[..., :3] - 0.5, depth, x[..., 4:]], axis=-1)
+        return jnp.concatenate([x[..., :3] - 0.5, depth, x[..., 4:]], axis=-1).reshape(b, hs, ws, s * s * k)
+
+    def input_at(self, features, uv):
+        """The input RGB-D (B, T, in_channels) bilinearly sampled at uv, from an ``input_skip``
+        cache; RGB centred, depth in metres, standardised like the motion's z when motion stats
+        exist."""
+        b, hs, ws, _ = features.shape
+        s = HEAD_STRIDE
+        pix = self._input_pixels(features).reshape(b, hs, ws, s, s, -1).transpose(0, 1, 3, 2, 4, 5)
+        return sample_features(pix.reshape(b, hs * s, ws * s, -1), uv)
 
     def feature_map(self, image, train: bool = False):
         """The full-resolution C-channel feature map (B, H, W, C)."""
@@ -184,11 +239,7 @@ class Denoiser(nn.Module):
             uv = motion_lib.uv(motion_t)
         elif uv.shape != (b, motion_lib.FRAMES, 2):
             raise ValueError(f"uv must have shape ({b}, {motion_lib.FRAMES}, 2), got {uv.shape}")
-        img = self.image_tokens(features, uv)
-        if self.image_proj is not None:
-            img = self.image_proj(img)
-        if c.input_skip:
-            img = img + self.input_embed(self.input_at(features, uv))
+        img = self.track_tokens(features, uv)
         tokens = [seq, img + sinusoidal_positions(motion_lib.FRAMES, d)]
 
         mask = None

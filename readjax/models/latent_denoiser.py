@@ -61,8 +61,19 @@ class LatentDenoiser(nn.Module):
         return self.unet.head_at(features, uv)
 
     def full_features(self, features):
-        """The full-resolution feature map that ``image_tokens`` samples (SPE retrieval)."""
+        """The full-resolution feature map that ``image_tokens`` samples."""
         return self.unet.head(features)
+
+    def retrieval_tokens(self, features, uv):
+        """What SPE retrieval compares along a track: the UNet's features (as READ's denoiser)."""
+        return self.image_tokens(features, uv)
+
+    def retrieval_map(self, features):
+        """The full map whose samples are ``retrieval_tokens`` (one image, many tracks)."""
+        return self.full_features(features)
+
+    def retrieval_embed(self, samples):
+        return samples
 
     def denoise(self, features, z_t, uv, t):
         c = self.cfg

@@ -193,7 +193,11 @@ def test_input_skip_reads_the_exact_pixel_under_uv(inputs):
     stats = dataclasses.replace(cfg, motion_mean=(0.0, 0.0, 1.2) + (0.0,) * 7, motion_std=(1.0, 1.0, 0.1) + (1.0,) * 7)
     got_n = jax.jit(lambda p, f, u: Denoiser(stats).apply(p, f, u, method="input_at"))(params, feats, uv)
     np.testing.assert_allclose(got_n[..., 3], (got[..., 3] - 1.2) / 0.1, rtol=1e-5, atol=1e-5)
-    # the UNet tokens (what SPE retrieval compares) ignore the skip; the denoiser uses it
+    # the UNet's samples ignore the skip; the transformer's tokens (and so the denoiser) use it
+    tracks = jax.jit(lambda p, f, u: model.apply(p, f, u, method="track_tokens"))(params, feats, uv)
+    brighter_tracks = jax.jit(lambda p, f, u: model.apply(p, f, u, method="track_tokens"))(
+        params, feats.at[..., TINY_DENOISER.conv_dims[0]:].add(0.1), uv)
+    assert not np.allclose(tracks, brighter_tracks)
     np.testing.assert_allclose(jax.jit(lambda p, f, u: model.apply(p, f, u, method="image_tokens"))(params, feats, uv),
                                jax.jit(lambda p, f, u: model.apply(p, f[..., :16], u, method="image_tokens"))(
                                    params, feats, uv), atol=0)
