@@ -13,6 +13,7 @@ import pytest
 from experiments import _cli
 from experiments import train as train_cli
 from readjax.data.generate import GenerateConfig, generate
+from readjax.evaluation import refine_update
 from readjax.methods import base
 from readjax.planner import Planner
 
@@ -69,10 +70,15 @@ def test_train_and_plan(data, name):
     again = planner.plan(rgbd, jax.random.key(0), N=2)
     np.testing.assert_array_equal(plan.motion, again.motion)  # same key -> same plan
     other = planner.model.generate(planner.encode(rgbd), plan.retrieved, jax.random.key(1), 2)
-    if method == "deterministic":
+    if method == "deterministic" or refine_update(planner.model) == "cold":
         np.testing.assert_array_equal(other, plan.motion)  # no sampling: the key is ignored
     else:
         assert not np.allclose(other, plan.motion)  # another key -> another sample
+    if refine_update(planner.model) == "cold":  # the paper's loop re-noises: the key matters
+        planner.model.set_refine_update("renoise")
+        paper = planner.model.generate(planner.encode(rgbd), plan.retrieved, jax.random.key(0), 2)
+        assert not np.allclose(planner.model.generate(planner.encode(rgbd), plan.retrieved, jax.random.key(1), 2),
+                               paper)
     if planner.model.uses_retrieval:
         retrieved = planner.plan(rgbd, jax.random.key(0), N=0)
         np.testing.assert_array_equal(retrieved.motion, retrieved.retrieved)
