@@ -147,12 +147,15 @@ class Denoiser(nn.Module):
         """The image tokens the transformer reads along a track (B, T, d), before positions: the
         sampled features (projected to d when C != d), plus the embedded input pixels with
         ``input_skip``."""
-        img = self.image_tokens(features, uv)
+        pixels = self.input_at(features, uv) if self.cfg.input_skip else None
+        return self._tokens(self.image_tokens(features, uv), pixels)
+
+    def _tokens(self, img, pixels):
+        """Image tokens from sampled features (projected to d when C != d) and, with
+        ``input_skip``, sampled input pixels (embedded and added)."""
         if self.image_proj is not None:
             img = self.image_proj(img)
-        if self.cfg.input_skip:
-            img = img + self.input_embed(self.input_at(features, uv))
-        return img
+        return img if pixels is None else img + self.input_embed(pixels)
 
     def retrieval_tokens(self, features, uv):
         """What SPE retrieval (METHOD.md section 7) compares along a track: the UNet's features
@@ -171,10 +174,7 @@ class Denoiser(nn.Module):
         full = self.full_features(features)
         if not self.cfg.input_skip:
             return full
-        b, hs, ws, _ = features.shape
-        s = HEAD_STRIDE
-        pix = self._input_pixels(features).reshape(b, hs, ws, s, s, -1).transpose(0, 1, 3, 2, 4, 5)
-        return jnp.concatenate([full, pix.reshape(b, hs * s, ws * s, -1)], axis=-1)
+        return jnp.concatenate([full, self._input_pixels(features)], axis=-1)
 
     def retrieval_embed(self, samples):
         """Samples (..., C') of ``retrieval_map`` -> ``retrieval_tokens``' values (the features are
@@ -182,33 +182,29 @@ class Denoiser(nn.Module):
         if not self.cfg.input_skip:
             return samples
         c = self.cfg.feature_channels
-        img = samples[..., :c]
-        if self.image_proj is not None:
-            img = self.image_proj(img)
-        return img + self.input_embed(samples[..., c:])
+        return self._tokens(samples[..., :c], samples[..., c:])
 
     def _input_pixels(self, features):
-        """The cache's input pixels (B, H/4, W/4, 16 * in_channels), each pixel normalised as
-        ``input_at`` returns it (RGB centred, depth in metres, standardised like z when motion
-        stats exist). Normalising is affine per channel, so it commutes with bilinear sampling."""
+        """The cache's input pixels back at full resolution (B, H, W, in_channels) (undoing
+        ``encode_image``'s space-to-depth), each normalised as ``input_at`` returns it (RGB centred,
+        depth in metres, standardised like z when motion stats exist). Normalising is affine per
+        channel, so it commutes with bilinear sampling."""
         c = self.cfg
         b, hs, ws, _ = features.shape
         s, k = HEAD_STRIDE, c.in_channels
-        x = features[..., c.conv_dims[0]:].reshape(b, hs, ws, s * s, k)
+        x = features[..., c.conv_dims[0]:].reshape(b, hs, ws, s, s, k).transpose(0, 1, 3, 2, 4, 5)
+        x = x.reshape(b, hs * s, ws * s, k)
         depth = DEPTH_NEAR + (DEPTH_FAR - DEPTH_NEAR) * x[..., 3:4]
         if c.motion_std:
             z = motion_lib.KEYS["z"].start
             depth = (depth - c.motion_mean[z]) / c.motion_std[z]
-        return jnp.concatenate([x[..., :3] - 0.5, depth, x[..., 4:]], axis=-1).reshape(b, hs, ws, s * s * k)
+        return jnp.concatenate([x[..., :3] - 0.5, depth, x[..., 4:]], axis=-1)
 
     def input_at(self, features, uv):
         """The input RGB-D (B, T, in_channels) bilinearly sampled at uv, from an ``input_skip``
         cache; RGB centred, depth in metres, standardised like the motion's z when motion stats
         exist."""
-        b, hs, ws, _ = features.shape
-        s = HEAD_STRIDE
-        pix = self._input_pixels(features).reshape(b, hs, ws, s, s, -1).transpose(0, 1, 3, 2, 4, 5)
-        return sample_features(pix.reshape(b, hs * s, ws * s, -1), uv)
+        return sample_features(self._input_pixels(features), uv)
 
     def feature_map(self, image, train: bool = False):
         """The full-resolution C-channel feature map (B, H, W, C)."""
