@@ -61,9 +61,8 @@ def main(argv=None) -> None:
     out = Path(args.out)
     task = tasks.canonical_name(args.task)
     # overrides are checked before any work starts (a typo costs nothing)
-    configs = config.override(config.presets("cpu"), [
-        f"vae_steps={args.vae_steps}", f"steps={args.steps}",
-        f"ckpt_every={max(min(args.vae_steps, args.steps) // 2, 1)}", *args.set])
+    configs = config.override(config.presets("cpu"), [f"vae_steps={args.vae_steps}", f"steps={args.steps}",
+                                                      *args.set])
     data = out / "data"
     print(f"[1/4] expert demos of {task}: {args.episodes} train + {args.test_episodes} test", flush=True)
     for split, n in (("train", args.episodes), ("test", args.test_episodes)):
