@@ -4,6 +4,7 @@
                                         (same scene, same recorded controls), compile time,
                                         MJX/C trajectory parity
   python -m experiments.bench planner  READ planner latency (see its --help)
+  python -m experiments.bench train    READ's two train steps timed, by parts, and profiled
 
 Results are printed and written as JSON (--out).
 """
@@ -17,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from experiments import _cli
+from experiments import _cli, bench_train
 
 
 def _time(fn, repeats: int) -> list[float]:
@@ -99,8 +100,9 @@ def _estimate_call_s(timed: list[tuple[int, float]], n: int) -> float:
 
 
 def slower_than(previous: dict, current: dict, factor: float = 2.0) -> list[str]:
-    """The planner cells and parts of ``current`` that take >= ``factor`` x the time they took in
-    ``previous`` (two bench JSONs; cells matched by preset, batch and N, parts by preset and batch).
+    """The cells and parts of ``current`` that take >= ``factor`` x the time they took in ``previous``
+    (two planner or two train bench JSONs; cells matched by preset, batch and N, parts by preset and
+    batch; every ``*_ms`` figure compared).
     A regression check for a benchmark run, not a unit test: only ratios within one machine mean
     anything."""
     flagged = []
@@ -186,8 +188,6 @@ def bench_planner(args) -> dict:
     import numpy as np
 
     from readjax import config, provenance, tasks
-    from readjax.data import motion as motion_lib
-    from readjax.data.store import Dataset
     from readjax.methods.read import ReadModel
     from readjax.planner import Planner
     from readjax.sim.camera import camera_from_model
@@ -200,14 +200,7 @@ def bench_planner(args) -> dict:
         cam = camera_from_model(env.mj_model, "front", size, size)
         model = ReadModel.random("reach_target", configs, cam, jax.random.key(0))
         rng = np.random.default_rng(0)
-        n_db = args.database
-        t = np.linspace(0, 1, motion_lib.FRAMES)[None, :, None]
-        pos = rng.uniform([0.3, -0.3, 0.1], [0.7, 0.3, 0.5], (n_db, 1, 3)) * t + (1 - t) * np.array([0.31, 0, 0.49])
-        rot = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (n_db, motion_lib.FRAMES, 3, 3))
-        motions = np.asarray(motion_lib.encode(cam, pos.astype(np.float32), rot.astype(np.float32),
-                                               np.ones((n_db, motion_lib.FRAMES), np.float32)))
-        db = Dataset("reach_target", "train", cam, rng.uniform(size=(n_db, size, size, 4)).astype(np.float32),
-                     motions, np.zeros((n_db, motion_lib.FRAMES, 7), np.float32), np.arange(n_db))
+        db = bench_train.synthetic_dataset(cam, args.database, size)
         t0 = time.perf_counter()
         planner = Planner(model, db)
         setup = time.perf_counter() - t0
@@ -277,23 +270,41 @@ def parser() -> argparse.ArgumentParser:
                     help="a previous planner JSON (e.g. docs/bench/planner_paper.json): list every cell or part "
                          "that got >= --slower x slower, and exit 1 if any did")
     pl.add_argument("--slower", type=float, default=2.0, help="the ratio --compare flags")
+    tr = sub.add_parser("train", help="READ's train steps (autoencoder, denoiser): timed, by parts, profiled",
+                        description=bench_train.__doc__, formatter_class=_cli.HelpFormatter)
+    tr.add_argument("--presets", nargs="+", default=["cpu"], choices=presets)
+    tr.add_argument("--batch", type=_cli.positive_int, default=32, help="batch size (the cpu preset trains at 32)")
+    tr.add_argument("--repeats", type=_cli.positive_int, default=20, help="timed calls per figure (median)")
+    tr.add_argument("--profile", action="store_true",
+                    help="also trace the READ step and attribute its XLA ops to the model's parts")
+    tr.add_argument("--out", default="runs/bench/train.json")
+    tr.add_argument("--compare", metavar="JSON", help="a previous train JSON (e.g. docs/bench/train_cpu.json): list "
+                                                      "every timing >= --slower x slower, and exit 1 if any is")
+    tr.add_argument("--slower", type=float, default=2.0, help="the ratio --compare flags")
     return p
+
+
+def read_compare(path: str | None, what: str, section: str) -> dict | None:
+    """The --compare JSON of a ``what`` benchmark (None without one); a missing or unreadable file,
+    or one without ``section``, is a one-line error before any timing."""
+    if not path:
+        return None
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"--compare: no benchmark JSON at {path}")
+    try:
+        previous = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--compare: {path} is not JSON ({e})") from e
+    if not isinstance(previous, dict) or section not in previous:
+        raise ValueError(f"--compare: {path} is not a {what} benchmark JSON (no {section!r})")
+    return previous
 
 
 def check_planner_inputs(args) -> dict | None:
     """Fail before any timing (minutes to hours) on a bad --compare or --vs-original: a missing or
     unreadable file is a one-line error. Returns the --compare JSON (None without it)."""
-    previous = None
-    if args.compare:
-        path = Path(args.compare)
-        if not path.is_file():
-            raise FileNotFoundError(f"--compare: no benchmark JSON at {path}")
-        try:
-            previous = json.loads(path.read_text())
-        except json.JSONDecodeError as e:
-            raise ValueError(f"--compare: {path} is not JSON ({e})") from e
-        if not isinstance(previous, dict) or "cells" not in previous:
-            raise ValueError(f"--compare: {path} is not a planner benchmark JSON (no 'cells')")
+    previous = read_compare(args.compare, "planner", "cells")
     if args.vs_original:
         for what, path, ok in (("--vs-original", args.vs_original, Path(args.vs_original).is_dir()),
                                ("--original-harness", args.original_harness, Path(args.original_harness).is_file()),
@@ -318,6 +329,11 @@ def main(argv=None) -> int | None:
         args.tasks = list(tasks.names()) if args.tasks == ["all"] else [tasks.canonical_name(t) for t in args.tasks]
         write_json(bench_sim(args), out)
         return None
+    if args.what == "train":
+        previous = read_compare(args.compare, "train", "parts")
+        result = bench_train.bench_train(args)
+        write_json(result, out)
+        return report_slower(previous, result, args)
     previous = check_planner_inputs(args)
     result = bench_planner(args)
     write_json(result, out)  # kept even if the original's harness fails below
@@ -330,14 +346,18 @@ def main(argv=None) -> int | None:
             print(f"B={r['batch']:<3} N={r['N']:<4} readjax {r['readjax_ms']:9.1f} ms  original ({r['variant']}) "
                   f"{r['original_ms']:9.1f} ms  -> {r['speedup']:.2f}x", flush=True)
         write_json(result, out)
-    if previous is not None:
-        flagged = slower_than(previous, result, args.slower)
-        for line in flagged:
-            print(f"SLOWER: {line}")
-        print(f"{len(flagged)} cells/parts >= {args.slower}x slower than {args.compare}")
-        if flagged:
-            return 1
-    return None
+    return report_slower(previous, result, args)
+
+
+def report_slower(previous: dict | None, result: dict, args) -> int | None:
+    """Print what got >= --slower x slower than the --compare JSON; 1 (the exit status) if anything did."""
+    if previous is None:
+        return None
+    flagged = slower_than(previous, result, args.slower)
+    for line in flagged:
+        print(f"SLOWER: {line}")
+    print(f"{len(flagged)} cells/parts >= {args.slower}x slower than {args.compare}")
+    return 1 if flagged else None
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""The planner benchmark's cost model for skipping cells that would run too long."""
+"""The benchmarks: the planner cost model for skipping cells, the regression check, the training profile."""
 
 import pytest
 
@@ -65,3 +65,32 @@ def test_bad_compare_or_original_paths_fail_before_any_timing(tmp_path):
     assert _cli.run(main, base + ["--compare", str(tmp_path / "other.json")]) == 2
     assert _cli.run(main, base + ["--vs-original", str(tmp_path / "no_READ")]) == 2
     assert not out.exists()
+
+
+def test_train_profile_attributes_a_steps_ops_to_the_models_parts():
+    """The training profile (experiments.bench train --profile) traces real steps and finds the
+    denoiser's parts, forward and backward, in the compiled program's metadata."""
+    import jax.numpy as jnp
+
+    from experiments import bench_train
+    from readjax.models import Denoiser
+    from readjax.training import StageSpec
+    from tests.models.helpers import TINY_DENOISER, jit_init, key, synthetic_batch
+
+    den = Denoiser(TINY_DENOISER)
+    b = synthetic_batch(2)
+    image = jnp.zeros((2, 32, 32, 4))
+    params = jit_init(den, key(0), image, b["motion"], jnp.zeros((2,)))
+
+    def loss(p, batch, rng):
+        pred = den.apply(p, batch["image"], batch["motion"], jnp.full((2,), 0.5))
+        return jnp.mean((pred - batch["motion"]) ** 2), {}
+
+    stepper = bench_train._Stepper(loss, params, StageSpec(steps=1, batch_size=2), {"image": image,
+                                                                                     "motion": b["motion"]}, 0)
+    rows = {r["part"]: r for r in bench_train.profile_step(stepper, calls=2)}
+    assert {"transformer layers", "UNet image encoder", "feature sampling"} <= set(rows)
+    assert rows["transformer layers"]["fwd_ms"] > 0 and rows["transformer layers"]["bwd_ms"] > 0
+    assert bench_train._part_of("jvp(Denoiser)/Denoiser.denoise/Denoiser.track_tokens/unet.head_at/mul") \
+        == "feature sampling"
+    assert stepper.cost()["gflop"] > 0

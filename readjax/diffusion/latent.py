@@ -59,14 +59,30 @@ def codec(ae, ae_params, stats: LatentStats | None):
     return encode, decode
 
 
-def measure(ae, ae_params, motions: np.ndarray, chunk: int = 256) -> LatentStats:
-    """The training motions' code statistics (std floored at ``STD_FLOOR``)."""
+def raw_codes(ae, ae_params, motions: np.ndarray, chunk: int = 256) -> np.ndarray:
+    """The autoencoder's code (its posterior mean, deterministic) of every motion (N, D) float32,
+    in fixed-size chunks."""
     code = jax.jit(lambda m: ae.apply(ae_params, m, method="code"))
     motions = np.asarray(motions, np.float32)
-    z = np.concatenate([np.asarray(code(jnp.asarray(motions[s:s + chunk])))
-                        for s in range(0, len(motions), chunk)]).astype(np.float64)
+    return np.concatenate([np.asarray(code(jnp.asarray(motions[s:s + chunk])))
+                           for s in range(0, len(motions), chunk)])
+
+
+def measure(ae, ae_params, motions: np.ndarray, chunk: int = 256) -> LatentStats:
+    """The training motions' code statistics (std floored at ``STD_FLOOR``)."""
+    z = raw_codes(ae, ae_params, motions, chunk).astype(np.float64)
     return LatentStats(jnp.asarray(z.mean(0), jnp.float32),
                        jnp.asarray(np.maximum(z.std(0), STD_FLOOR), jnp.float32))
+
+
+def codes(ae, ae_params, motions: np.ndarray, stats: LatentStats | None, chunk: int = 256) -> np.ndarray:
+    """The SDE latents of every motion (N, D), as ``codec``'s encode returns them (``stats=None``:
+    the raw code). Training stages whose autoencoder is frozen compute them once instead of
+    encoding each sampled motion at every step (same values up to float rounding)."""
+    z = raw_codes(ae, ae_params, motions, chunk)
+    if stats is None:
+        return z
+    return ((z - np.asarray(stats.mean)) / np.asarray(stats.std)).astype(np.float32)
 
 
 def write(run_dir: str | Path, stats: LatentStats) -> None:

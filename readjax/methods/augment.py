@@ -13,6 +13,11 @@ import jax.numpy as jnp
 
 def augment_rgb(key: jax.Array, images: jax.Array, p: float = 0.5) -> jax.Array:
     """images (B, H, W, 4) in [0, 1] -> augmented copy (RGB only), per-sample random choices."""
+    with jax.named_scope("augment"):  # profiles attribute its ops (experiments.bench train)
+        return _augment_rgb(key, images, p)
+
+
+def _augment_rgb(key: jax.Array, images: jax.Array, p: float) -> jax.Array:
     b = images.shape[0]
     k_sel, k_noise, k_bright, k_drop = jax.random.split(key, 4)
     use = jax.random.uniform(k_sel, (4, b)) < p

@@ -123,15 +123,20 @@ def sample_indices(n: int, batch: int, seed: int, step: int) -> np.ndarray:
     return batch_indices(n, batch, seed, step)
 
 
-def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, **extra):
+def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, codes: np.ndarray | None = None, **extra):
     """The batch function of a retrieval-conditioned stage: images and motions of sampled demos and,
     for each, one of its K ground-truth neighbours (``retrieved``); pure in the step (exact resume).
-    ``extra`` entries are added to every batch unchanged."""
+    With ``codes`` (N, D), every demo's precomputed latent (a frozen autoencoder's), the batch also
+    holds the sampled demos' (``code``) and their neighbours' (``code_r``). ``extra`` entries are
+    added to every batch unchanged."""
 
     def batch(step):
         idx = sample_indices(len(ds), spec.batch_size, spec.seed, step)
         j = neighbour_choice(pairs, idx, spec.seed, step)
-        return {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j], **extra}
+        out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j], **extra}
+        if codes is not None:
+            out.update(code=codes[idx], code_r=codes[j])
+        return out
 
     return batch
 

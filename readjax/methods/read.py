@@ -57,15 +57,19 @@ def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict, l
     """M̂0 = D(I, Dec(z_t), t) with z_t from the latent IR-SDE marginal (on the standardised latent
     with ``latent`` stats, :mod:`readjax.diffusion.latent`); per-key MSEs summed with the
     autoencoder's key weights (METHOD.md sums them unweighted; our z is in metres, so an
-    unweighted sum ignores depth errors of several centimetres)."""
-    enc, dec = latent_lib.codec(ae, ae_params, latent)
+    unweighted sum ignores depth errors of several centimetres).
+
+    The batch carries z0 = Enc(M) and zR = Enc(M_R) (``code``, ``code_r``: the frozen autoencoder's
+    deterministic codes, computed once per training set by :func:`latent_lib.codes`; encoding them
+    at every step cost 2 of the step's 3 autoencoder passes)."""
+    _, dec = latent_lib.codec(ae, ae_params, latent)
 
     def loss_fn(params, batch, rng):
         k_t, k_n, k_aug, k_drop = jax.random.split(rng, 4)
-        image, m, m_r = batch["image"], batch["motion"], batch["retrieved"]
+        image, m = batch["image"], batch["motion"]
         if augment:
             image = augment_rgb(k_aug, image)
-        z0, z_r = enc(m), enc(m_r)
+        z0, z_r = batch["code"], batch["code_r"]
         t = irsde.sample_time(k_t, (m.shape[0],), sde)
         m_t = dec(irsde.marginal_sample(k_n, z0, z_r, t, sde))
         pred = den.apply(params, image, m_t, t, train=True, rngs={"dropout": k_drop})
@@ -138,8 +142,9 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         dspec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
         loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights, latent)
-        run.fit("read", dspec, init_denoiser(den, run.image_size, k_den), loss, base.paired_batch(ds, dspec, pairs),
-                progress, stop_at)
+        codes = latent_lib.codes(ae, ae_params, ds.motion, latent)
+        run.fit("read", dspec, init_denoiser(den, run.image_size, k_den), loss,
+                base.paired_batch(ds, dspec, pairs, codes=codes), progress, stop_at)
     return run.result()
 
 

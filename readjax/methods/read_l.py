@@ -52,17 +52,17 @@ def read_l_loss(ae, lden: LatentDenoiser, sde: SDEConfig, augment: bool, latent=
     """MSE(ẑ0, z0) over the latent dims. ``params`` = {"denoiser": trained, "ae": frozen}: the frozen
     autoencoder rides in the train state under ``stop_gradient`` (zero gradients, so Adam leaves it
     exactly unchanged) — an argument of the jitted step, not a constant baked into it. With
-    ``latent`` stats the latents are standardised (:mod:`readjax.diffusion.latent`)."""
+    ``latent`` stats the latents are standardised (:mod:`readjax.diffusion.latent`). z0 and zR come
+    precomputed in the batch (``code``, ``code_r``, as in READ's loss)."""
 
     def loss_fn(params, batch, rng):
         ae_params = jax.lax.stop_gradient(params["ae"])
         k_t, k_n, k_aug, k_drop = jax.random.split(rng, 4)
-        image, m, m_r = batch["image"], batch["motion"], batch["retrieved"]
+        image, z0, z_r = batch["image"], batch["code"], batch["code_r"]
         if augment:
             image = augment_rgb(k_aug, image)
-        enc, dec = latent_lib.codec(ae, ae_params, latent)
-        z0, z_r = enc(m), enc(m_r)
-        t = irsde.sample_time(k_t, (m.shape[0],), sde)
+        _, dec = latent_lib.codec(ae, ae_params, latent)
+        t = irsde.sample_time(k_t, (z0.shape[0],), sde)
         z_t = irsde.marginal_sample(k_n, z0, z_r, t, sde)
         uv = motion_lib.uv(dec(z_t))
         pred = lden.apply(params["denoiser"], image, z_t, uv, t, train=True, rngs={"dropout": k_drop})
@@ -84,8 +84,9 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
         spec = base.network_stage_spec(train_cfg)
         pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
         params = {"denoiser": init_latent_denoiser(lden, run.image_size, k_den), "ae": ae_params}
+        codes = latent_lib.codes(ae, ae_params, ds.motion, latent)
         run.fit("read_l", spec, params, read_l_loss(ae, lden, sde, train_cfg.augment, latent),
-                base.paired_batch(ds, spec, pairs), progress, stop_at)
+                base.paired_batch(ds, spec, pairs, codes=codes), progress, stop_at)
     return run.result()
 
 

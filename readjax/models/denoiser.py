@@ -186,14 +186,18 @@ class Denoiser(nn.Module):
 
     def _input_pixels(self, features):
         """The cache's input pixels back at full resolution (B, H, W, in_channels) (undoing
-        ``encode_image``'s space-to-depth), each normalised as ``input_at`` returns it (RGB centred,
-        depth in metres, standardised like z when motion stats exist). Normalising is affine per
-        channel, so it commutes with bilinear sampling."""
+        ``encode_image``'s space-to-depth), each normalised as ``input_at`` returns it."""
         c = self.cfg
         b, hs, ws, _ = features.shape
         s, k = HEAD_STRIDE, c.in_channels
         x = features[..., c.conv_dims[0]:].reshape(b, hs, ws, s, s, k).transpose(0, 1, 3, 2, 4, 5)
-        x = x.reshape(b, hs * s, ws * s, k)
+        return self._normalise_pixels(x.reshape(b, hs * s, ws * s, k))
+
+    def _normalise_pixels(self, x):
+        """Input RGB-D values (..., in_channels) as the transformer reads them: RGB centred, depth in
+        metres, standardised like z when motion stats exist. Affine per channel, so it commutes
+        with bilinear sampling."""
+        c = self.cfg
         depth = DEPTH_NEAR + (DEPTH_FAR - DEPTH_NEAR) * x[..., 3:4]
         if c.motion_std:
             z = motion_lib.KEYS["z"].start
@@ -203,8 +207,22 @@ class Denoiser(nn.Module):
     def input_at(self, features, uv):
         """The input RGB-D (B, T, in_channels) bilinearly sampled at uv, from an ``input_skip``
         cache; RGB centred, depth in metres, standardised like the motion's z when motion stats
-        exist."""
-        return sample_features(self._input_pixels(features), uv)
+        exist. Gathers the four neighbours of each point straight from the cache's space-to-depth
+        layout (equal to sampling ``_input_pixels``, without rebuilding the full image per call)."""
+        c = self.cfg
+        s, k = HEAD_STRIDE, c.in_channels
+        b, hs, ws, _ = features.shape
+        flat = features[..., c.conv_dims[0]:].reshape(b, hs * ws * s * s, k)
+        (y0, y1, wy), (x0, x1, wx) = bilinear_axis(uv[..., 1], hs * s), bilinear_axis(uv[..., 0], ws * s)
+
+        def at(yi, xi):  # pixel (yi, xi) sits in trunk cell (yi // s, xi // s), slot (yi % s, xi % s)
+            idx = ((yi // s) * ws + xi // s) * (s * s) + (yi % s) * s + xi % s
+            return jnp.take_along_axis(flat, idx[..., None], axis=1)
+
+        wx, wy = wx[..., None], wy[..., None]
+        sampled = ((1 - wx) * (1 - wy) * at(y0, x0) + wx * (1 - wy) * at(y0, x1)
+                   + (1 - wx) * wy * at(y1, x0) + wx * wy * at(y1, x1))
+        return self._normalise_pixels(sampled)
 
     def feature_map(self, image, train: bool = False):
         """The full-resolution C-channel feature map (B, H, W, C)."""

@@ -36,6 +36,18 @@ def test_measured_stats_standardise_the_training_codes(ae_and_motions):
     np.testing.assert_allclose(z.std(0)[live], 1, rtol=1e-3)
 
 
+def test_precomputed_codes_are_the_codec_encoding(ae_and_motions):
+    """Training stages take z0 and zR from codes computed once per training set: they must be what
+    the codec's encode returns for each motion, with and without standardisation."""
+    ae, params, motions = ae_and_motions
+    stats = latent.measure(ae, params, motions)
+    for s in (None, stats):
+        enc, _ = latent.codec(ae, params, s)
+        z = latent.codes(ae, params, motions, s, chunk=5)
+        assert z.shape == (24, TINY_VAE.latent_dim) and z.dtype == np.float32
+        np.testing.assert_allclose(z, np.asarray(enc(motions)), rtol=1e-4, atol=1e-4)  # batching: rounding
+
+
 def test_codec_decodes_what_it_encodes_like_the_raw_code(ae_and_motions):
     """Standardisation is a change of units of the SDE's latent only: Dec(Enc(M)) is unchanged."""
     ae, params, motions = ae_and_motions

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from readjax.config import SDEConfig
+from readjax.diffusion import latent
 from readjax.methods import read as read_lib
 from readjax.methods import read_l
 from readjax.models import make_autoencoder
@@ -24,6 +25,8 @@ def test_latent_denoiser_fit_and_sample():
     ae_params = jax.jit(lambda k: read_lib.init_ae(ae, k))(key(0))
     lden = LatentDenoiser(TINY_DENOISER, latent_dim=TINY_VAE.latent_dim)
     params = jax.jit(lambda k: read_l.init_latent_denoiser(lden, 32, k))(key(1))
+    batch.update(code=latent.codes(ae, ae_params, batch["motion"], None),
+                 code_r=latent.codes(ae, ae_params, batch["retrieved"], None))
     with pytest.raises(ValueError, match="z_t"):
         lden.apply(params, jnp.asarray(batch["image"]), jnp.zeros((B, 3)), jnp.zeros((B, 101, 2)), 0.5)
     first, final, trained = fit(read_l.read_l_loss(ae, lden, SDE, augment=False),

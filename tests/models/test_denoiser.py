@@ -193,6 +193,13 @@ def test_input_skip_reads_the_exact_pixel_under_uv(inputs):
     stats = dataclasses.replace(cfg, motion_mean=(0.0, 0.0, 1.2) + (0.0,) * 7, motion_std=(1.0, 1.0, 0.1) + (1.0,) * 7)
     got_n = jax.jit(lambda p, f, u: Denoiser(stats).apply(p, f, u, method="input_at"))(params, feats, uv)
     np.testing.assert_allclose(got_n[..., 3], (got[..., 3] - 1.2) / 0.1, rtol=1e-5, atol=1e-5)
+    # between pixel centres and beyond the border: bilinear samples of the full normalised image
+    from readjax.models.denoiser import sample_features
+
+    uv_any = jax.random.uniform(key(6), (B, 7, 2), minval=-1.1, maxval=1.1)
+    full = jax.jit(lambda p, f: model.apply(p, f, method="_input_pixels"))(params, feats)
+    np.testing.assert_allclose(jax.jit(lambda p, f, u: model.apply(p, f, u, method="input_at"))(params, feats, uv_any),
+                               sample_features(full, uv_any), atol=1e-5)
     # the UNet's samples ignore the skip; the transformer's tokens (and so the denoiser) use it
     tracks = jax.jit(lambda p, f, u: model.apply(p, f, u, method="track_tokens"))(params, feats, uv)
     brighter_tracks = jax.jit(lambda p, f, u: model.apply(p, f, u, method="track_tokens"))(

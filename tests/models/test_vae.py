@@ -128,3 +128,23 @@ def test_input_checks(vae, batch):
         jax.eval_shape(lambda z: model.apply(params, z, method="decode"), bad_latent)
     with pytest.raises(ValueError, match="motion"):
         model.apply(params, {"joints": batch["joints"]}, method="loss")
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_attention_is_flaxs_multi_head_attention(masked):
+    """The head-major attention has Flax's parameters (names, shapes, initial values: checkpoints
+    load either way) and computes the same function, with and without a key mask."""
+    import flax.linen as nn
+
+    from readjax.models.vae import Attention
+
+    rng = np.random.default_rng(0)
+    x = jnp.asarray(rng.normal(size=(2, 9, 32)), jnp.float32)
+    memory = jnp.asarray(rng.normal(size=(2, 5, 32)), jnp.float32)
+    mask = (jnp.arange(5)[None, None, None, :] < jnp.array([2, 5])[:, None, None, None]) if masked else None
+    ref = nn.MultiHeadDotProductAttention(num_heads=4, qkv_features=32, out_features=32)
+    ours = Attention(4, 32)
+    p_ref, p_ours = ref.init(key(0), x, memory), ours.init(key(0), x, memory)
+    jax.tree.map(np.testing.assert_array_equal, p_ref, p_ours)
+    np.testing.assert_allclose(ours.apply(p_ref, x, memory, mask=mask), ref.apply(p_ref, x, memory, mask=mask),
+                               atol=2e-6)
