@@ -151,10 +151,11 @@ def build(preset: str, batch: int, n_demos: int = 256):
     loss = read_lib.read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights,
                               latent)
     idx = np.arange(batch) % n_demos
+    first = batch_fn(0)
     return {
         "configs": configs, "ae": ae, "ae_params": ae_params, "den": den, "den_params": den_params,
-        "latent": latent, "batch_fn": batch_fn, "batch": batch_fn(0),
-        "read": _Stepper(loss, den_params, dspec, batch_fn(0), 1),
+        "latent": latent, "batch_fn": batch_fn, "batch": first,
+        "read": _Stepper(loss, den_params, dspec, first, 1),
         "vae": _Stepper(read_lib.ae_loss(ae), ae_params, vspec,
                         {"motion": ds.motion[idx], "joints": ds.joints[idx]}, 0),
     }

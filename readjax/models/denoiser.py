@@ -53,12 +53,17 @@ def sample_features(features: jax.Array, uv: jax.Array) -> jax.Array:
     if uv.ndim != 3 or uv.shape[-1] != 2 or uv.shape[0] != features.shape[0]:
         raise ValueError(f"uv must have shape (B={features.shape[0]}, T, 2), got {uv.shape}")
     b, h, w, c = features.shape
+    return bilinear_gather(features.reshape(b, h * w, c), uv, h, w, lambda y, x: y * w + x)
+
+
+def bilinear_gather(flat: jax.Array, uv: jax.Array, h: int, w: int, index) -> jax.Array:
+    """Bilinear samples (B, T, C) at uv (B, T, 2) of an h x w map stored as rows of ``flat``
+    (B, N, C), pixel (y, x) at row ``index(y, x)`` (the convention of :func:`sample_features`)."""
     y0, y1, wy = bilinear_axis(uv[..., 1], h)
     x0, x1, wx = bilinear_axis(uv[..., 0], w)
-    flat = features.reshape(b, h * w, c)
 
     def at(yi, xi):
-        return jnp.take_along_axis(flat, (yi * w + xi)[..., None], axis=1)
+        return jnp.take_along_axis(flat, index(yi, xi)[..., None], axis=1)
 
     wx, wy = wx[..., None], wy[..., None]
     return ((1 - wx) * (1 - wy) * at(y0, x0) + wx * (1 - wy) * at(y0, x1)
@@ -213,16 +218,11 @@ class Denoiser(nn.Module):
         s, k = HEAD_STRIDE, c.in_channels
         b, hs, ws, _ = features.shape
         flat = features[..., c.conv_dims[0]:].reshape(b, hs * ws * s * s, k)
-        (y0, y1, wy), (x0, x1, wx) = bilinear_axis(uv[..., 1], hs * s), bilinear_axis(uv[..., 0], ws * s)
 
-        def at(yi, xi):  # pixel (yi, xi) sits in trunk cell (yi // s, xi // s), slot (yi % s, xi % s)
-            idx = ((yi // s) * ws + xi // s) * (s * s) + (yi % s) * s + xi % s
-            return jnp.take_along_axis(flat, idx[..., None], axis=1)
+        def index(y, x):  # pixel (y, x) sits in trunk cell (y // s, x // s), slot (y % s, x % s)
+            return ((y // s) * ws + x // s) * (s * s) + (y % s) * s + x % s
 
-        wx, wy = wx[..., None], wy[..., None]
-        sampled = ((1 - wx) * (1 - wy) * at(y0, x0) + wx * (1 - wy) * at(y0, x1)
-                   + (1 - wx) * wy * at(y1, x0) + wx * wy * at(y1, x1))
-        return self._normalise_pixels(sampled)
+        return self._normalise_pixels(bilinear_gather(flat, uv, hs * s, ws * s, index))
 
     def feature_map(self, image, train: bool = False):
         """The full-resolution C-channel feature map (B, H, W, C)."""

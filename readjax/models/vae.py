@@ -82,7 +82,7 @@ class Attention(nn.Module):
     Flax's module contracts (B, T, heads, d) layouts directly; on XLA-CPU that batched dot_general
     ran 6x slower forward at B = 32, T = 203 (40 ms against 6.5 ms per layer; 14 against 2 ms in
     the autoencoder at T = 101), and the forward pass alone is what refinement, evaluation and the
-    frozen autoencoder in training run (BENCHMARKS.md 4c). ``mask`` (broadcastable to
+    frozen autoencoder in training run (BENCHMARKS.md 4d). ``mask`` (broadcastable to
     (B, heads, queries, keys), True = attend) as in Flax."""
 
     heads: int
