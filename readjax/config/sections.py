@@ -72,6 +72,13 @@ class DenoiserConfig:
     paper, see README). The per-image cache then carries the input pixels (space-to-depth) after
     the trunk features: ``cache_channels``.
 
+    ``surface_depth`` (needs ``input_skip``): each motion token's embedding also reads how far the
+    frame lies beyond the visible surface under it, z - depth(uv), in the units of the standardised
+    z (metres without motion stats). The READ transformer keeps motion and image tokens apart, so
+    without it a motion token must find its own frame's image token by attention before it can
+    compare its depth with the image's; with it, "end 28 mm behind the sphere's surface" is one
+    linear read (beyond the paper, see README).
+
     ``conv_dims``/``enc_depths`` are the four encoder stages, ``dec_depths`` the three decoder
     levels (deepest first is level 2; tuples are ordered from the shallowest level, like the
     encoder's). ``feature_channels`` is C of the full-resolution feature map; when it differs from
@@ -93,6 +100,7 @@ class DenoiserConfig:
     ffn: int = 1024
     normalize_motion: bool = False
     input_skip: bool = False
+    surface_depth: bool = False
     motion_mean: tuple[float, ...] = ()
     motion_std: tuple[float, ...] = ()
 
@@ -121,9 +129,13 @@ class DenoiserConfig:
                              f"({self.heads}) and by 4")
         if not 0.0 <= self.drop_path < 1.0:
             raise ValueError("DenoiserConfig.drop_path must be in [0, 1)")
+        if self.surface_depth and not self.input_skip:
+            raise ValueError("DenoiserConfig.surface_depth reads the input depth under each frame: it needs "
+                             "input_skip=True")
 
 
 REFINE_UPDATES = ("renoise", "cold", "cold_anchor")
+SCHEDULES = ("staircase", "cosine")
 DEFAULT_N = 100  # sampler / refinement steps when none are asked for (the paper's setting A)
 
 

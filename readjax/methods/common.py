@@ -7,8 +7,8 @@ channels over every frame of every training demo (std floored at ``STD_FLOOR`` s
 stay finite), written to ``RUN/normalizer.json`` when training starts and read back by the model.
 The diffusion state lives in normalised units and the denoiser embeds it as such (a channel
 with a tiny spread, e.g. a fixed orientation, would otherwise hide its noise from the network),
-but its image tokens are sampled at the state's real, denormalised uv (:func:`real_uv`, the
-Denoiser's ``uv`` argument); its eps output is in normalised units.
+but its image tokens are sampled along the state's real, denormalised track (:func:`denormalize`,
+the Denoiser's ``track`` argument); its eps output is in normalised units.
 """
 
 from __future__ import annotations
@@ -79,11 +79,6 @@ def normalize(m: jax.Array, stats) -> jax.Array:
 def denormalize(x: jax.Array, stats) -> jax.Array:
     mean, std = stats
     return x * std + mean
-
-
-def real_uv(x: jax.Array, stats) -> jax.Array:
-    """The image-plane track (B, 101, 2) of a normalised motion: where to sample image features."""
-    return motion_lib.uv(denormalize(x, stats))
 
 
 # ------------------------------------------------------------------ training helpers

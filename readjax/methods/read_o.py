@@ -62,7 +62,7 @@ def read_o_loss(den: Denoiser, sde: SDEConfig, augment: bool):
         eps = jax.random.normal(k_n, x0.shape, x0.dtype)
         x_t = mean + std * eps
         pred = den.apply(params, image, x_t, t, train=True, rngs={"dropout": k_drop},
-                         uv=common.real_uv(x_t, stats))
+                         track=common.denormalize(x_t, stats))
         if den.output == "delta":
             return common.per_key_mse(common.denormalize(pred, stats), m)
         return common.per_key_mse(pred, eps)
@@ -94,7 +94,7 @@ def refine(den: Denoiser, den_params, features, stats, m_r, key, n_steps: int, s
     x_r = common.normalize(m_r, stats)
 
     def net(x, t):  # x̂0 (delta denoiser) or eps, normalised units
-        return den.apply(den_params, features, x, t, uv=common.real_uv(x, stats), method="denoise")
+        return den.apply(den_params, features, x, t, track=common.denormalize(x, stats), method="denoise")
 
     if den.output == "delta":
         out = taskspace.cold_diffusion(net, key, x_r, sde, n_steps, t_end, return_history)

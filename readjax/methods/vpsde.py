@@ -65,7 +65,7 @@ def eps_loss(den: Denoiser, cfg: VPSDEConfig, augment: bool):
             kw = {"cond": common.normalize(batch["retrieved"], stats),
                   "cond_keep": jax.random.uniform(k_keep, (b,)) >= cfg.cond_drop}
         pred = den.apply(params, image, x_t, t, train=True, rngs={"dropout": k_drop},
-                         uv=common.real_uv(x_t, stats), **kw)
+                         track=common.denormalize(x_t, stats), **kw)
         return common.per_key_mse(pred, eps)
 
     return loss_fn
@@ -114,12 +114,12 @@ def sample(den: Denoiser, den_params, features, stats, m_r, key, n_steps: int, c
     x_r = common.normalize(m_r, stats)
 
     def eps_fn(x, t):
-        uv = common.real_uv(x, stats)
+        track = common.denormalize(x, stats)
         if not den.use_cond:
-            return den.apply(den_params, features, x, t, uv=uv, method="denoise")
+            return den.apply(den_params, features, x, t, track=track, method="denoise")
 
         def branch(keep):
-            return den.apply(den_params, features, x, t, cond=x_r, cond_keep=jnp.full((b,), keep), uv=uv,
+            return den.apply(den_params, features, x, t, cond=x_r, cond_keep=jnp.full((b,), keep), track=track,
                              method="denoise")
 
         eps_c = branch(True)

@@ -95,16 +95,17 @@ class Denoiser(nn.Module):
       with ``input_skip``), and ``retrieval_map(features)`` / ``retrieval_embed(samples)``, its
       form for one image sampled along many tracks;
     * ``feature_map(image, train=False) -> (B, H, W, C)``: the full map itself (inspection, tests);
-    * ``denoise(features, motion_t, t, cond=None, cond_keep=None, uv=None) -> (B, 101, 10)``;
-    * ``__call__(image, motion_t, t, cond=None, cond_keep=None, train=False, uv=None)`` = encode + denoise
+    * ``denoise(features, motion_t, t, cond=None, cond_keep=None, track=None) -> (B, 101, 10)``;
+    * ``__call__(image, motion_t, t, cond=None, cond_keep=None, train=False, track=None)`` = encode + denoise
       (for init and training). Training with drop-path needs ``train=True`` and
       ``rngs={"dropout": key}``.
 
     ``t`` is a scalar or (B,). ``cond`` (B, 101, 10) is only accepted when ``use_cond``; with
     ``use_cond`` and ``cond=None`` the conditioning tokens are all masked (unconditional).
-    ``cond_keep`` (B,) bool masks them per sample. ``uv`` (B, 101, 2), when given, is where the image
-    tokens are sampled instead of ``motion_t``'s own uv (the baselines that diffuse normalised
-    motions feed the normalised motion and sample at its real uv); None keeps READ's behaviour.
+    ``cond_keep`` (B,) bool masks them per sample. ``track`` (B, 101, 10), when given, is the motion in
+    real units that places the image tokens (its uv) and, with ``surface_depth``, the frames' depth
+    (its z) instead of ``motion_t`` itself (the baselines that diffuse normalised motions feed the
+    normalised motion and its real track); None keeps READ's behaviour.
     """
 
     cfg: DenoiserConfig
@@ -125,8 +126,8 @@ class Denoiser(nn.Module):
         self.layers = [EncoderLayer(d, c.heads, c.ffn) for _ in range(c.layers)]
         self.heads = {k: MLP((d // 2, d // 2, dim)) for k, dim in KEY_DIMS.items()}
 
-    def __call__(self, image, motion_t, t, cond=None, cond_keep=None, train: bool = False, uv=None):
-        return self.denoise(self.encode_image(image, train), motion_t, t, cond, cond_keep, uv)
+    def __call__(self, image, motion_t, t, cond=None, cond_keep=None, train: bool = False, track=None):
+        return self.denoise(self.encode_image(image, train), motion_t, t, cond, cond_keep, track)
 
     def encode_image(self, image, train: bool = False):
         """The per-image feature cache (computed once per image, reused at every step): the UNet
@@ -228,7 +229,18 @@ class Denoiser(nn.Module):
         """The full-resolution C-channel feature map (B, H, W, C)."""
         return self.unet(image, train)
 
-    def denoise(self, features, motion_t, t, cond=None, cond_keep=None, uv=None):
+    def surface_offset(self, track, pixels):
+        """How far each frame of ``track`` (B, T, 10, real units) lies beyond the visible surface under
+        it, z - depth(uv) (B, T, 1), from the ``input_at`` samples ``pixels`` at its uv: in units of
+        the standardised z when motion stats exist (both sides are standardised alike), else metres."""
+        c = self.cfg
+        z = track[..., motion_lib.KEYS["z"]]
+        if c.motion_std:
+            i = motion_lib.KEYS["z"].start
+            z = (z - c.motion_mean[i]) / c.motion_std[i]
+        return z - pixels[..., 3:4]
+
+    def denoise(self, features, motion_t, t, cond=None, cond_keep=None, track=None):
         c = self.cfg
         d = c.d_model
         check_motion_shape(motion_t, "motion_t")
@@ -246,14 +258,19 @@ class Denoiser(nn.Module):
             std = jnp.asarray(c.motion_std, jnp.float32)
         else:
             mean, std = 0.0, 1.0
-        motion_tok = self.motion_embed((motion_t - mean) / std)
+        if track is None:
+            track = motion_t
+        elif track.shape != motion_t.shape:
+            raise ValueError(f"track must have the shape of motion_t {motion_t.shape}, got {track.shape}")
+        uv = motion_lib.uv(track)
+        pixels = self.input_at(features, uv) if c.input_skip else None
+        motion_in = (motion_t - mean) / std
+        if c.surface_depth:
+            motion_in = jnp.concatenate([motion_in, self.surface_offset(track, pixels)], axis=-1)
+        motion_tok = self.motion_embed(motion_in)
         time_tok = self.time_embed(time_features(t, d))[:, None, :]
         seq = jnp.concatenate([motion_tok, time_tok], axis=1) + sinusoidal_positions(motion_lib.FRAMES + 1, d)
-        if uv is None:
-            uv = motion_lib.uv(motion_t)
-        elif uv.shape != (b, motion_lib.FRAMES, 2):
-            raise ValueError(f"uv must have shape ({b}, {motion_lib.FRAMES}, 2), got {uv.shape}")
-        img = self.track_tokens(features, uv)
+        img = self._tokens(self.image_tokens(features, uv), pixels)
         tokens = [seq, img + sinusoidal_positions(motion_lib.FRAMES, d)]
 
         mask = None

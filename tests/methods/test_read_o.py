@@ -37,6 +37,6 @@ def test_fit_and_sample(sampler):
     assert not np.allclose(a, c)
     if sampler == "cd":  # the first step denoises M_R itself at t = 1 (like READ's refinement)
         x_r = common.normalize(m_r, stats)
-        first_step = jax.jit(lambda p: den.apply(p, feats, x_r, 1.0, uv=m_r[..., :2], method="denoise"))(params)
+        first_step = jax.jit(lambda p: den.apply(p, feats, x_r, 1.0, track=m_r, method="denoise"))(params)
         np.testing.assert_allclose(hist[0], common.denormalize(first_step, stats), rtol=1e-4, atol=1e-4)
 

@@ -76,7 +76,7 @@ def test_guidance_formula(cg_setup):
     ones, zeros = jnp.ones((B,), bool), jnp.zeros((B,), bool)
     # the denoiser embeds normalised motions (state and M_R) and samples the image at the real uv
     eps = jax.jit(lambda p, keep: den.apply(p, feats, x, 1.0, cond=common.normalize(m_r, stats), cond_keep=keep,
-                                            uv=common.denormalize(x, stats)[..., :2], method="denoise"))
+                                            track=common.denormalize(x, stats), method="denoise"))
     e_c, e_u = eps(params, ones), eps(params, zeros)
     assert not np.allclose(e_c, e_u)
     h = 1.0 - CFG.sample_eps
@@ -89,13 +89,13 @@ def test_guidance_formula(cg_setup):
     np.testing.assert_allclose(out1, expect1, rtol=1e-4, atol=1e-4)
 
 
-def test_denoiser_uv_argument(cg_setup):
-    """``uv`` moves where the image tokens are sampled; None (READ) samples at the motion's own uv."""
+def test_denoiser_track_argument(cg_setup):
+    """``track`` moves where the image tokens are sampled; None (READ) samples along the motion itself."""
     den, params, feats, batch, stats = cg_setup
     m = jnp.asarray(batch["motion"])
-    f = jax.jit(lambda p, uv: den.apply(p, feats, m, 0.5, uv=uv, method="denoise"))
+    f = jax.jit(lambda p, track: den.apply(p, feats, m, 0.5, track=track, method="denoise"))
     base = jax.jit(lambda p: den.apply(p, feats, m, 0.5, method="denoise"))(params)
-    np.testing.assert_allclose(f(params, m[..., :2]), base, rtol=1e-5, atol=1e-5)
-    assert not np.allclose(f(params, -m[..., :2]), base)
-    with pytest.raises(ValueError, match="uv"):
-        den.apply(params, feats, m, 0.5, uv=m[:, :5, :2], method="denoise")
+    np.testing.assert_allclose(f(params, m), base, rtol=1e-5, atol=1e-5)
+    assert not np.allclose(f(params, m.at[..., :2].multiply(-1)), base)
+    with pytest.raises(ValueError, match="track"):
+        den.apply(params, feats, m, 0.5, track=m[:, :5], method="denoise")

@@ -110,8 +110,6 @@ def test_motion_normalisation_is_a_change_of_units(den, inputs):
     parameters give mean + std * (the raw-unit network on the standardised motion, read at the real uv)."""
     import dataclasses
 
-    from readjax.data import motion as mo
-
     model, params, fn = den
     image, motion, t = inputs
     mean = np.linspace(-0.5, 1.0, 10).astype(np.float32)
@@ -121,8 +119,8 @@ def test_motion_normalisation_is_a_change_of_units(den, inputs):
     feats = fn["encode_image"](params, image)
     out = jitted(norm_model, "denoise")(params, feats, motion, t)
     x = (motion - mean) / std
-    ref = jax.jit(lambda p, f, m, tt, uv: model.apply(p, f, m, tt, uv=uv, method="denoise"))(
-        params, feats, x, t, mo.uv(motion))
+    ref = jax.jit(lambda p, f, m, tt, track: model.apply(p, f, m, tt, track=track, method="denoise"))(
+        params, feats, x, t, motion)
     np.testing.assert_allclose(out, mean + std * ref, atol=1e-5)
     with pytest.raises(ValueError, match="motion_std"):
         dataclasses.replace(TINY_DENOISER, motion_mean=(0.0,) * 10, motion_std=(1.0,) * 9)
@@ -211,3 +209,38 @@ def test_input_skip_reads_the_exact_pixel_under_uv(inputs):
     out = jitted(model, "denoise")(params, feats, motion, t)
     brighter = feats.at[..., TINY_DENOISER.conv_dims[0]:].add(0.1)
     assert out.shape == motion.shape and not np.allclose(out, jitted(model, "denoise")(params, brighter, motion, t))
+
+
+def test_surface_depth_reads_z_beyond_the_visible_surface(inputs):
+    """With surface_depth each motion token also embeds z - depth(uv): the frame's distance beyond
+    the surface the image shows under it, in standardised-z units (metres without stats). Moving
+    a frame and the whole depth image back by the same distance leaves that offset, and so the
+    token, unchanged; moving the frame alone changes it."""
+    import dataclasses
+
+    from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR
+
+    image, motion, t = inputs
+    with pytest.raises(ValueError, match="input_skip"):
+        dataclasses.replace(TINY_DENOISER, surface_depth=True)
+    stats = dict(motion_mean=(0.0, 0.0, 1.2) + (0.0,) * 7, motion_std=(1.0, 1.0, 0.1) + (1.0,) * 7)
+    for extra in ({}, stats):
+        cfg = dataclasses.replace(TINY_DENOISER, input_skip=True, surface_depth=True, **extra)
+        model = Denoiser(cfg)
+        params = jit_init(model, {"params": key(7), "dropout": key(8)}, image, motion, t)
+        flat = image.at[..., 3].set(0.25)  # depth DEPTH_NEAR + 0.25 (FAR - NEAR) everywhere
+        feats = jitted(model, "encode_image")(params, flat)
+        pixels = jax.jit(lambda p, f, u: model.apply(p, f, u, method="input_at"))(params, feats, motion[..., :2])
+        off = jax.jit(lambda p, m, px: model.apply(p, m, px, method="surface_offset"))(params, motion, pixels)
+        metres = motion[..., 2:3] - (DEPTH_NEAR + 0.25 * (DEPTH_FAR - DEPTH_NEAR))
+        np.testing.assert_allclose(off, metres / (0.1 if extra else 1.0), rtol=1e-4, atol=1e-4)
+        back = jitted(model, "encode_image")(params, flat.at[..., 3].add(0.05 / (DEPTH_FAR - DEPTH_NEAR)))
+        px_back = jax.jit(lambda p, f, u: model.apply(p, f, u, method="input_at"))(params, back, motion[..., :2])
+        off_back = jax.jit(lambda p, m, px: model.apply(p, m, px, method="surface_offset"))(
+            params, motion.at[..., 2].add(0.05), px_back)
+        np.testing.assert_allclose(off_back, off, rtol=1e-4, atol=1e-4)
+        out = jitted(model, "denoise")(params, feats, motion, t)
+        moved = jitted(model, "denoise")(params, feats, motion.at[..., 2].add(0.05), t)
+        assert out.shape == motion.shape and np.isfinite(out).all() and not np.allclose(out, moved)
+        g = jax.grad(lambda m: jnp.sum(model.apply(params, feats, m, t, method="denoise")))(motion)
+        assert np.isfinite(g).all()
