@@ -76,6 +76,7 @@ class StageSpec:
     lr: float = 1e-4
     lr_decay: float = 1.0  # multiplied every lr_decay_every steps (staircase); 1 = constant
     lr_decay_every: int = 5000
+    schedule: str = "staircase"  # or "cosine": lr -> 0 along one cosine over ``steps`` (lr_decay unused)
     grad_clip: float = 1.0
     ckpt_every: int = 500
     log_every: int = 25
@@ -83,9 +84,19 @@ class StageSpec:
     seed: int = 0
 
 
+def learning_rate(spec: StageSpec):
+    """The stage's learning rate: a schedule of the step (``TrainConfig.schedule``) or a constant."""
+    if spec.schedule == "cosine":
+        return optax.cosine_decay_schedule(spec.lr, spec.steps)
+    if spec.schedule != "staircase":
+        raise ValueError(f"unknown schedule {spec.schedule!r}; use 'staircase' or 'cosine'")
+    if spec.lr_decay != 1.0:
+        return optax.exponential_decay(spec.lr, spec.lr_decay_every, spec.lr_decay, staircase=True)
+    return spec.lr
+
+
 def make_optimizer(spec: StageSpec) -> optax.GradientTransformation:
-    lr = optax.exponential_decay(spec.lr, spec.lr_decay_every, spec.lr_decay, staircase=True) \
-        if spec.lr_decay != 1.0 else spec.lr
+    lr = learning_rate(spec)
     return optax.chain(optax.clip_by_global_norm(spec.grad_clip), optax.adam(lr))
 
 

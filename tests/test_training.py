@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from readjax.training import CheckpointError, Stage, StageSpec, TrainState, batch_indices
+from readjax.training import CheckpointError, Stage, StageSpec, TrainState, batch_indices, learning_rate
 
 X = np.random.default_rng(0).normal(size=(64, 3)).astype(np.float32)
 Y = X @ np.array([[1.0], [-2.0], [0.5]], np.float32)
@@ -91,3 +91,29 @@ def test_stage_from_an_older_readjax_accepts_new_fields_at_their_defaults(tmp_pa
     Stage(tmp_path, "toy", SPEC, new, "fp")  # defaults: accepted
     with pytest.raises(CheckpointError, match=r"differs in \['denoiser'\]"):
         Stage(tmp_path, "toy", SPEC, {**new, "denoiser": {**new["denoiser"], "input_skip": True}}, "fp")
+
+
+def test_learning_rate_schedules(tmp_path):
+    """staircase: lr x lr_decay every lr_decay_every steps (constant at lr_decay 1); cosine: lr at
+    step 0, half at mid-stage, 0 at the last step, whatever lr_decay says; a cosine stage resumes
+    exactly like a staircase one (the rate is a function of the step)."""
+    import dataclasses
+
+    from readjax.config import TrainConfig
+
+    stair = StageSpec(steps=100, batch_size=8, lr=0.1, lr_decay=0.5, lr_decay_every=30)
+    assert [float(learning_rate(stair)(s)) for s in (0, 29, 30, 61)] == pytest.approx([0.1, 0.1, 0.05, 0.025])
+    assert learning_rate(dataclasses.replace(stair, lr_decay=1.0)) == 0.1
+    cos = dataclasses.replace(stair, schedule="cosine")
+    assert [float(learning_rate(cos)(s)) for s in (0, 50, 100)] == pytest.approx([0.1, 0.05, 0.0], abs=1e-7)
+    with pytest.raises(ValueError, match="schedule"):
+        learning_rate(dataclasses.replace(stair, schedule="linear"))
+    with pytest.raises(ValueError, match="schedule"):
+        TrainConfig(schedule="linear")
+    spec = dataclasses.replace(SPEC, schedule="cosine")
+    full = Stage(tmp_path / "a", "toy", spec, {}, "fp").fit(params0(), loss_fn, sample, progress=False)
+    Stage(tmp_path / "b", "toy", spec, {}, "fp").fit(params0(), loss_fn, sample, progress=False, stop_at=20)
+    resumed = Stage(tmp_path / "b", "toy", spec, {}, "fp").fit(params0(), loss_fn, sample, progress=False)
+    np.testing.assert_array_equal(np.asarray(resumed.params["w"]), np.asarray(full.params["w"]))
+    staircase = Stage(tmp_path / "c", "toy", SPEC, {}, "fp").fit(params0(), loss_fn, sample, progress=False)
+    assert not np.allclose(np.asarray(staircase.params["w"]), np.asarray(full.params["w"]))

@@ -197,6 +197,13 @@ class TrainConfig:
     lr: float = 1e-4
     lr_decay: float = 0.99  # every lr_decay_every steps (staircase)
     lr_decay_every: int = 5000
+    # "staircase": the network stage's lr times lr_decay every lr_decay_every steps, the
+    # autoencoder's constant (the released code's). "cosine": each stage's lr decays along one
+    # cosine to 0 over its own steps (vae_steps, steps), lr_decay* unused, so the checkpoint a
+    # stage ends on is where the optimiser settled, not one point of a trajectory still moving at
+    # full step size (at the cpu preset's 3000 steps that point decides the autoencoder's end-point
+    # error: BENCHMARKS.md 8h)
+    schedule: str = "staircase"
     K: int = 3
     augment: bool = True
     ckpt_every: int = 2000
@@ -207,3 +214,5 @@ class TrainConfig:
         for n in ("vae_steps", "vae_batch", "steps", "batch", "K", "ckpt_every", "log_every"):
             if not isinstance(getattr(self, n), int) or getattr(self, n) < 1:
                 raise ValueError(f"TrainConfig.{n} must be a positive int, got {getattr(self, n)!r}")
+        if self.schedule not in SCHEDULES:
+            raise ValueError(f"TrainConfig.schedule must be one of {', '.join(SCHEDULES)}, got {self.schedule!r}")

@@ -90,7 +90,7 @@ def load_train_data(data_root: str | Path, task: str, train_cfg: TrainConfig, im
 
 def autoencoder_stage_spec(train: TrainConfig) -> StageSpec:
     """The ``vae/`` stage (READ's and READ-L's motion autoencoder): the ``train.vae_*`` settings."""
-    return StageSpec(steps=train.vae_steps, batch_size=train.vae_batch, lr=train.vae_lr,
+    return StageSpec(steps=train.vae_steps, batch_size=train.vae_batch, lr=train.vae_lr, schedule=train.schedule,
                      ckpt_every=train.ckpt_every, log_every=train.log_every, seed=train.seed)
 
 
@@ -98,7 +98,7 @@ def network_stage_spec(train: TrainConfig) -> StageSpec:
     """Every method's main network stage (READ's, READ-O's and the VPSDEs' denoiser, READ-L's latent
     denoiser, Deterministic's ResNet): ``train.steps``/``batch``/``lr``..., seed ``train.seed + 1``."""
     return StageSpec(steps=train.steps, batch_size=train.batch, lr=train.lr, lr_decay=train.lr_decay,
-                     lr_decay_every=train.lr_decay_every, ckpt_every=train.ckpt_every,
+                     lr_decay_every=train.lr_decay_every, schedule=train.schedule, ckpt_every=train.ckpt_every,
                      log_every=train.log_every, seed=train.seed + 1)
 
 

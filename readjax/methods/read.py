@@ -38,12 +38,14 @@ def init_denoiser(den, image_size: int, key):
                     jnp.zeros((1, motion_lib.FRAMES, motion_lib.DIM)), jnp.zeros((1,)))
 
 
-VAE_TRAIN_FIELDS = ("episodes", "vae_steps", "vae_batch", "vae_lr", "seed", "ckpt_every", "log_every")
+VAE_TRAIN_FIELDS = ("episodes", "vae_steps", "vae_batch", "vae_lr", "schedule", "seed", "ckpt_every", "log_every")
 
 
 def vae_stage_config(cfg_dict: dict) -> dict:
     """What the autoencoder stage depends on: runs differing only in K, L, T, ... share it."""
-    return {"vae": cfg_dict["vae"], "train": {k: cfg_dict["train"][k] for k in VAE_TRAIN_FIELDS}}
+    defaults = {f.name: f.default for f in dataclasses.fields(config.TrainConfig)}
+    # a run recorded before a field existed ran with its default (new fields keep the old behaviour)
+    return {"vae": cfg_dict["vae"], "train": {k: cfg_dict["train"].get(k, defaults[k]) for k in VAE_TRAIN_FIELDS}}
 
 
 def ae_loss(ae):

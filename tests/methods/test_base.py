@@ -35,3 +35,15 @@ def test_paired_batch_is_pure_in_the_step_and_carries_each_demos_codes():
     assert all(jj in pairs[i] for i, jj in zip(idx, j))
     np.testing.assert_array_equal(a["extra"], np.ones(2))
     assert "code" not in base.paired_batch(ds, spec, pairs)(5)
+
+
+def test_autoencoder_stage_config_of_a_run_recorded_before_a_train_field_existed():
+    """run.json of an older run lacks fields added since (e.g. train.schedule): its autoencoder
+    stage ran with their defaults, and loading it must not fail on the missing key."""
+    from readjax.methods import read
+
+    old = {"vae": {"width": 32}, "train": {"episodes": 0, "vae_steps": 3000, "vae_batch": 32, "vae_lr": 1e-3,
+                                           "seed": 0, "ckpt_every": 500, "log_every": 25, "steps": 3000}}
+    stage = read.vae_stage_config(old)
+    assert stage["train"]["schedule"] == "staircase" and stage["train"]["vae_steps"] == 3000
+    assert "steps" not in stage["train"]  # the denoiser's settings do not touch the autoencoder stage
