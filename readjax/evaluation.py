@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from readjax import provenance, tables, tasks, viz
+from readjax import failure_modes, provenance, tables, tasks, viz
 from readjax.data import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
@@ -88,9 +88,15 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None,
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
+        # which data: the test split as stored (experiments.verify records the same hash) and the
+        # training set the run learnt from; a table row is only comparable to rows on the same test split
+        "test_fingerprint": test_ds.fingerprint, "train_fingerprint": planner.spec.get("dataset_fingerprint"),
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
-        "versions": provenance.versions(), "machine": provenance.machine(),
+        "versions": provenance.versions(), "machine": provenance.machine(), "commit": provenance.commit(),
     }
+    marks = scene_landmarks(env, scenes)
+    if marks:  # where each plan ended: failures counted by the object they went for
+        result["end_points"] = failure_modes.summarise(plan["positions"][:, -1], marks, res["success"])
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -106,6 +112,14 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
             frames = viz.rollout_video(env, scenes, traces, max_episodes=cfg.videos)
             viz.save_video(out / f"{name}_rollouts.mp4", frames)
     return result
+
+
+def scene_landmarks(env, scenes) -> dict[str, np.ndarray]:
+    """The task's landmark groups (``TaskEnv.landmarks``) of a batch of scenes: {name: (B, k, 3)};
+    empty for tasks that define none."""
+    if not env.landmarks(jax.tree.map(lambda x: x[0], scenes)):
+        return {}
+    return {k: np.asarray(v) for k, v in jax.vmap(env.landmarks)(scenes).items()}
 
 
 def refine_update(model) -> str | None:
@@ -130,7 +144,7 @@ def replay_ground_truth(env, ds: Dataset, batch_size: int = 32) -> dict:
         "success": success.astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         "image_size": ds.image_size, "batch_size": batch_size, "format_version": ds.meta.get("format_version"),
-        "dataset_fingerprint": ds.fingerprint,
+        "dataset_fingerprint": ds.fingerprint, "commit": provenance.commit(),
         "seconds": {"guard": round(t_guard, 2), "execution": round(time.time() - t0 - t_guard, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),
     }

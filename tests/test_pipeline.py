@@ -14,7 +14,7 @@ import readjax
 from experiments import _cli
 from experiments import evaluate as evaluate_cli
 from experiments import train as train_cli
-from readjax import refine_report, retrieval
+from readjax import provenance, refine_report, retrieval
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.planner import Planner
@@ -77,12 +77,20 @@ def test_plan_and_execute(run, capsys):
 
 
 def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
-    _, run_dir = run
+    data, run_dir = run
     argv = ["--run", str(run_dir), "--episodes", "4", "--N", "2", "--batch-size", "4", "--videos", "0",
             "--refine", "renoise", "--quiet"]
     assert _cli.run(evaluate_cli.main, argv) == 0
     result = json.loads((run_dir / "eval" / "spe_N2.json").read_text())
     assert result["eval_config"]["refine_update"] == "renoise" and result["episodes"] == 4
+    # provenance: the data it ran on and the code that ran it
+    test = store.load_dataset(data / "reach_target" / "test")
+    assert result["test_fingerprint"] == test.fingerprint
+    assert result["train_fingerprint"] == json.loads((run_dir / "run.json").read_text())["dataset_fingerprint"]
+    assert result["commit"] == provenance.commit() != ""
+    # RT has landmarks: every plan's end point is classified (target or distractor)
+    assert len(result["end_points"]["nearest_landmark"]) == 4
+    assert set(result["end_points"]["nearest_landmark"]) <= {"target", "distractor"}
 
 
 def test_refine_report_on_the_trained_run(run, tmp_path, capsys):

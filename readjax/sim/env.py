@@ -123,6 +123,12 @@ class TaskEnv:
     def is_failure(self, progress, data, grasp: GraspState, scene: Scene) -> jax.Array:
         return jnp.zeros((), bool)
 
+    def landmarks(self, scene: Scene) -> dict[str, jax.Array]:
+        """Named groups of world points (k, 3) where a plan may end and what that would mean, e.g.
+        {"target": ..., "distractor": ...}: evaluation records which group each plan's end point
+        is nearest (:mod:`readjax.failure_modes`). Empty for tasks that define none."""
+        return {}
+
     # ------------------------------------------------------------------ helpers for tasks
     @property
     def control_dt(self) -> float:

@@ -44,6 +44,10 @@ class ReachTarget(TaskEnv):
         quat = jnp.stack([down_quat(0.0)] * 2)
         return WaypointPlan(pos=pos, quat=quat, grip=jnp.ones(2))
 
+    def landmarks(self, scene):
+        return {"target": scene.mocap_pos[self.target_mocap][None],
+                "distractor": scene.mocap_pos[jnp.array(self.distractor_mocap)]}
+
     def is_success(self, progress, data, grasp, scene):
         tip = data.site_xpos[self.tcp_site]
         return jnp.linalg.norm(tip - data.mocap_pos[self.target_mocap]) < RADIUS

@@ -1,0 +1,51 @@
+"""Where executed plans ended, against the scene's landmarks (``TaskEnv.landmarks``): which object
+each plan's end point is nearest, and how far from it.
+
+A failure whose plan ends nearest a distractor went for the wrong object (a retrieval or
+recognition error, which a local refinement cannot undo); one that ends nearest the target
+missed it by a distance (a precision error: depth or image position). Evaluation records both per
+episode, so a table's failures can be counted by kind without re-planning.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+
+def nearest_landmarks(end: np.ndarray, landmarks: dict[str, np.ndarray]) -> tuple[list[str], np.ndarray]:
+    """For end points (B, 3) and landmark groups {name: (B, k, 3)}: the nearest group's name per
+    episode and the distance (m) to its nearest point (B,)."""
+    end = np.asarray(end, np.float64)
+    if end.ndim != 2 or end.shape[1] != 3:
+        raise ValueError(f"end points must have shape (B, 3), got {end.shape}")
+    if not landmarks:
+        raise ValueError("no landmarks: this task defines none (TaskEnv.landmarks)")
+    names = list(landmarks)
+    dist = []
+    for n in names:
+        pts = np.asarray(landmarks[n], np.float64)
+        if pts.ndim != 3 or pts.shape[0] != end.shape[0] or pts.shape[2] != 3:
+            raise ValueError(f"landmark group {n!r} must have shape ({end.shape[0]}, k, 3), got {pts.shape}")
+        dist.append(np.linalg.norm(end[:, None] - pts, axis=-1).min(axis=1))
+    dist = np.stack(dist, axis=1)
+    which = dist.argmin(axis=1)
+    return [names[i] for i in which], dist[np.arange(len(end)), which]
+
+
+def summarise(end: np.ndarray, landmarks: dict[str, np.ndarray], success) -> dict:
+    """Per episode: the plan's end point, its nearest landmark group and the distance; and the
+    failures counted by nearest group with their median distance."""
+    success = np.asarray(success, bool)
+    nearest, dist = nearest_landmarks(end, landmarks)
+    failed = [(n, d) for n, d, ok in zip(nearest, dist, success) if not ok]
+    counts = Counter(n for n, _ in failed)
+    return {
+        "plan_end_m": np.round(np.asarray(end, np.float64), 4).tolist(),
+        "nearest_landmark": nearest,
+        "landmark_distance_m": np.round(dist, 4).tolist(),
+        "failures_by_nearest": {n: {"count": counts[n],
+                                    "median_distance_m": float(np.median([d for m, d in failed if m == n]))}
+                                for n in landmarks if counts[n]},
+    }
