@@ -3,6 +3,7 @@ Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenan
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
 import json
 import re
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from readjax import tasks
+from readjax.config import SECTIONS, TrainConfig
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
 
@@ -218,6 +220,73 @@ def comparison_lines(results: list[dict], reference: str) -> list[str]:
     return lines + [""]
 
 
+def with_defaults(configs: dict) -> dict:
+    """Recorded configs with every field a run predates filled in at its default (new fields
+    default to the old behaviour), so runs of one recipe recorded by different readjax versions
+    compare equal."""
+    out = {}
+    for section, values in configs.items():
+        cls = TrainConfig if section == "train" else SECTIONS.get(section)
+        if cls is not None and isinstance(values, dict):
+            defaults = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default
+                        for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
+            values = {**defaults, **values}
+        out[section] = values
+    return out
+
+
+def training_group(r: dict) -> str | None:
+    """What a result measures apart from which training produced it: the task, the method, every
+    config except ``train.seed``, and the evaluation (name and protocol settings). Results with the
+    same group and different training seeds are replicates of one recipe; None when the result does
+    not record its configs."""
+    configs = r.get("configs")
+    if not configs:
+        return None
+    configs = with_defaults(configs)
+    configs["train"] = {k: v for k, v in configs.get("train", {}).items() if k != "seed"}
+    return json.dumps([r["task"], r.get("method"), configs, r.get("name"), r.get("eval_config")], sort_keys=True)
+
+
+def across_trainings(results: list[dict]) -> list[dict]:
+    """Groups of results (:func:`training_group`) produced by at least two trainings with different
+    ``train.seed``: per group its row labels, success rates, mean and range. On a task where
+    trainings disagree, one training's paired test against another method's says little about the
+    methods (BENCHMARKS.md 8g); the spread across trainings is the yardstick."""
+    groups: dict[str, list[dict]] = {}
+    for r in results:
+        g = training_group(r)
+        if g is not None:
+            groups.setdefault(g, []).append(r)
+    out = []
+    for members in groups.values():
+        seeds = {m["configs"].get("train", {}).get("seed") for m in members}
+        if len(seeds) < 2:
+            continue
+        members = sorted(members, key=lambda m: natural_key(row_label(m)))
+        rates = [100 * m["success_rate"] for m in members]
+        out.append({"task": members[0]["task"], "eval": members[0].get("name"),
+                    "rows": [row_label(m) for m in members],
+                    "seeds": [m["configs"].get("train", {}).get("seed") for m in members],
+                    "rates": rates, "mean": float(np.mean(rates)), "min": min(rates), "max": max(rates)})
+    return sorted(out, key=lambda g: (g["task"], natural_key(g["rows"][0])))
+
+
+def across_lines(results: list[dict]) -> list[str]:
+    groups = across_trainings(results)
+    if not groups:
+        return []
+    lines = ["## Across trainings (same recipe, different `train.seed`)", "",
+             "Rows whose configs and evaluation are identical except the training seed: each training's "
+             "success %, their mean and range.", "",
+             "| task | rows (seed) | success % | mean | range |", "|---|---|---|---|---|"]
+    for g in groups:
+        rows = "<br>".join(f"{r} ({s})" for r, s in zip(g["rows"], g["seeds"]))
+        rates = " / ".join(f"{x:.0f}" for x in g["rates"])
+        lines.append(f"| {tasks.code_of(g['task'])} | {rows} | {rates} | {g['mean']:.1f} | {g['min']:.0f}-{g['max']:.0f} |")
+    return lines + [""]
+
+
 def sweeps(runs_root: str | Path) -> list[dict]:
     return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))]
 
@@ -253,6 +322,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
                 chart_shown = True
     for reference in compare:
         lines += comparison_lines(listed, reference)
+    lines += across_lines(by_protocol["main"])
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]

@@ -105,3 +105,28 @@ def test_compare_pairs_rows_on_common_episodes(tmp_path, capsys):
     assert "| read: spe_N100 | +20 (p=0.5) |" in other
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--compare", "nope"]) == 2
     assert "no row 'nope'" in capsys.readouterr().err
+
+
+def test_across_trainings_groups_replicates_of_one_recipe(tmp_path):
+    """Runs whose configs differ only in train.seed (fields a run predates count at their default)
+    form one group with each training's rate, the mean and the range; another recipe, or one
+    training alone, forms none."""
+    runs = tmp_path / "runs"
+
+    def write(run, rate, seed, **train):
+        _write(runs, "reach_target", run, "spe_N10", rate)
+        f = runs / "reach_target" / run / "eval" / "spe_N10.json"
+        r = json.loads(f.read_text())
+        r["method"] = "read"
+        r["configs"] = {"train": {"steps": 3000, "seed": seed, **train}, "vae": {"width": 32}}
+        f.write_text(json.dumps(r))
+
+    write("read_a", 0.79, 0)
+    write("read_b", 0.51, 1, schedule="staircase")  # recorded by a newer readjax: the default, explicit
+    write("read_c", 0.60, 2)
+    write("read_cos", 0.90, 0, schedule="cosine")  # another recipe, one training: no group
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out)]) == 0
+    section = out.read_text().split("## Across trainings")[1].split("## Provenance")[0]
+    assert "| RT | read_a: spe_N10 (0)<br>read_b: spe_N10 (1)<br>read_c: spe_N10 (2) | 79 / 51 / 60 | 63.3 | 51-79 |" in section
+    assert "read_cos" not in section
