@@ -201,8 +201,9 @@ class TrainConfig:
     # autoencoder's constant (the released code's). "cosine": each stage's lr decays along one
     # cosine to 0 over its own steps (vae_steps, steps), lr_decay* unused, so the checkpoint a
     # stage ends on is where the optimiser settled, not one point of a trajectory still moving at
-    # full step size (at the cpu preset's 3000 steps that point decides the autoencoder's end-point
-    # error: BENCHMARKS.md 8h)
+    # full step size. At the cpu preset on RT it makes the autoencoder 4x more exact (end point
+    # 25-33 -> 6-8 mm) yet READ's success fell (79 / 51 -> 57 / 41 %): off in both presets
+    # (BENCHMARKS.md 8h)
     schedule: str = "staircase"
     K: int = 3
     augment: bool = True
