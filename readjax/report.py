@@ -3,7 +3,6 @@ Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenan
 
 from __future__ import annotations
 
-import dataclasses
 import fnmatch
 import json
 import re
@@ -13,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from readjax import tasks
-from readjax.config import SECTIONS, TrainConfig
+from readjax.config import field_defaults
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
 
@@ -226,11 +225,8 @@ def with_defaults(configs: dict) -> dict:
     compare equal."""
     out = {}
     for section, values in configs.items():
-        cls = TrainConfig if section == "train" else SECTIONS.get(section)
-        if cls is not None and isinstance(values, dict):
-            defaults = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default
-                        for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
-            values = {**defaults, **values}
+        if isinstance(values, dict):
+            values = {**field_defaults(section), **values}
         out[section] = values
     return out
 

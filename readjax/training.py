@@ -9,7 +9,6 @@ resumed from its latest checkpoint sees exactly the batches an uninterrupted run
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import time
@@ -26,17 +25,12 @@ from flax import struct
 from tqdm.auto import tqdm
 
 from readjax import provenance, sharding
-from readjax.config import SECTIONS, TrainConfig
+from readjax.config import field_defaults
 
 
 def _field_default(section: str, name: str):
     """The dataclass default of a config field (``missing`` if unknown)."""
-    cls = TrainConfig if section == "train" else SECTIONS.get(section)
-    fields = {f.name: f for f in dataclasses.fields(cls)} if cls is not None else {}
-    if name not in fields or fields[name].default is dataclasses.MISSING:
-        return _MISSING
-    value = fields[name].default
-    return list(value) if isinstance(value, tuple) else value
+    return field_defaults(section).get(name, _MISSING)
 
 
 _MISSING = object()

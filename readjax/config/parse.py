@@ -141,6 +141,17 @@ def _parse_train(text: str, tp, where: str):
         raise ValueError(f"{where}: expected {tp.__name__}, got {text!r}") from None
 
 
+def field_defaults(section: str) -> dict[str, Any]:
+    """JSON-form defaults (tuples as lists) of a section's fields with a default (``train`` or any
+    of ``SECTIONS``; empty for an unknown section). A field added since a run was recorded ran with
+    its default: new fields default to the old behaviour."""
+    cls = TrainConfig if section == "train" else SECTIONS.get(section)
+    if cls is None:
+        return {}
+    return {f.name: list(f.default) if isinstance(f.default, tuple) else f.default
+            for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
+
+
 def to_dict(configs: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     """JSON-ready nested dict of a preset-style dict (tuples become lists)."""
     return {name: dataclasses.asdict(cfg) for name, cfg in configs.items()}

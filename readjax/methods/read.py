@@ -43,8 +43,7 @@ VAE_TRAIN_FIELDS = ("episodes", "vae_steps", "vae_batch", "vae_lr", "schedule", 
 
 def vae_stage_config(cfg_dict: dict) -> dict:
     """What the autoencoder stage depends on: runs differing only in K, L, T, ... share it."""
-    defaults = {f.name: f.default for f in dataclasses.fields(config.TrainConfig)}
-    # a run recorded before a field existed ran with its default (new fields keep the old behaviour)
+    defaults = config.field_defaults("train")  # what a run recorded before a field existed ran with
     return {"vae": cfg_dict["vae"], "train": {k: cfg_dict["train"].get(k, defaults[k]) for k in VAE_TRAIN_FIELDS}}
 
 
