@@ -103,3 +103,51 @@ def configure_jax() -> None:
     from readjax import linalg
 
     linalg.install_cpu_cholesky()
+
+
+# --- compiled-code mappings ---------------------------------------------------------------------
+# XLA's CPU backend gives every compiled kernel its own memory mappings (code, read-only data,
+# data): ~150 for a small jitted function, thousands for an MJX rollout. Linux caps mappings per
+# process (vm.max_map_count, 65530 by default), and a compile past the cap segfaults inside LLVM.
+# A process that compiles hundreds of programs (the test suite, a training-and-evaluation sweep)
+# reached it (BENCHMARKS 8i). Dropping JAX's in-memory executable caches unmaps them; a later call
+# recompiles, from the persistent cache when it is on.
+
+
+def map_count(maps_path: str = "/proc/self/maps") -> int | None:
+    """Memory mappings this process holds (None where /proc is absent: not Linux)."""
+    try:
+        with open(maps_path, "rb") as f:
+            return sum(1 for _ in f)
+    except OSError:
+        return None
+
+
+def map_limit(limit_path: str = "/proc/sys/vm/max_map_count") -> int | None:
+    """The kernel's cap on one process's mappings (None where unreadable)."""
+    try:
+        with open(limit_path) as f:
+            return int(f.read().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def release_compiled_if_crowded(fraction: float = 0.5, count: int | None = None,
+                                limit: int | None = None) -> bool:
+    """Free JAX's compiled executables (``jax.clear_caches`` and a garbage collection) when this
+    process holds more than ``fraction`` of the kernel's mapping cap; True if it did. Call it
+    between independent units of work (a test, a sweep cell): cheap (one read of /proc) and a
+    no-op until the process gets near the cap. ``count`` / ``limit`` default to the live values."""
+    if not 0 < fraction < 1:
+        raise ValueError(f"fraction must be in (0, 1), got {fraction}")
+    count = map_count() if count is None else count
+    limit = map_limit() if limit is None else limit
+    if count is None or limit is None or count <= fraction * limit:
+        return False
+    import gc
+
+    import jax
+
+    jax.clear_caches()
+    gc.collect()
+    return True

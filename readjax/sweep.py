@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from readjax import config, evaluation, methods, tasks
+from readjax import _runtime, config, evaluation, methods, tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.planner import Planner
@@ -112,6 +112,10 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
             if progress:
                 print(f"  {task} " + " ".join(f"{k}={_label(full[k])}" for k in DEFAULTS)
                       + f": {100 * result['success_rate']:.1f}%", flush=True)
+        # Each cell compiles its own programs: free them before the process nears the kernel's
+        # cap on memory mappings (see readjax._runtime).
+        del planner
+        _runtime.release_compiled_if_crowded()
     out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
            "grid": cfg.grid, "episodes": cfg.episodes, "cells": cells}
     sweep_dir.mkdir(parents=True, exist_ok=True)

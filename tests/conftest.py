@@ -29,3 +29,15 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(autouse=True)
+def _release_compiled_code():
+    """Hundreds of compiled programs in one pytest process reach Linux's cap on memory mappings
+    (vm.max_map_count) and the next compile segfaults (BENCHMARKS 8i): after each test, drop JAX's
+    in-memory executables once the process holds half the cap (later tests recompile, mostly from
+    the persistent cache)."""
+    yield
+    from readjax import _runtime
+
+    _runtime.release_compiled_if_crowded(0.5)
