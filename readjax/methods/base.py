@@ -125,16 +125,19 @@ def sample_indices(n: int, batch: int, seed: int, step: int) -> np.ndarray:
 
 def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, codes: np.ndarray | None = None, **extra):
     """The batch function of a retrieval-conditioned stage: images and motions of sampled demos and,
-    for each, one of its K ground-truth neighbours (``retrieved``); pure in the step (exact resume).
-    With ``codes`` (N, D), every demo's precomputed latent (a frozen autoencoder's), the batch also
-    holds the sampled demos' (``code``) and their neighbours' (``code_r``). ``extra`` entries are
-    added to every batch unchanged."""
+    for each, one of its K ground-truth neighbours; pure in the step (exact resume). The neighbour
+    comes as its motion (``retrieved``) or, given ``codes`` (N, D), every demo's precomputed latent
+    (a frozen autoencoder's), as its latent (``code_r``, with the sampled demos' own as ``code``):
+    a latent-space loss reads no neighbour motion. ``extra`` entries are added to every batch
+    unchanged."""
 
     def batch(step):
         idx = sample_indices(len(ds), spec.batch_size, spec.seed, step)
         j = neighbour_choice(pairs, idx, spec.seed, step)
-        out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], "retrieved": ds.motion[j], **extra}
-        if codes is not None:
+        out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], **extra}
+        if codes is None:
+            out["retrieved"] = ds.motion[j]
+        else:
             out.update(code=codes[idx], code_r=codes[j])
         return out
 

@@ -17,7 +17,7 @@ class _Data:
         return len(self.motion)
 
 
-def test_paired_batch_is_pure_in_the_step_and_carries_each_demos_codes():
+def test_paired_batch_is_pure_in_the_step_and_carries_each_demos_neighbour():
     ds = _Data(20)
     pairs = np.stack([(np.arange(20) + s) % 20 for s in (1, 2, 3)], axis=1)  # 3 neighbours each
     codes = np.arange(20, dtype=np.float32)[:, None] * np.ones((1, 4), np.float32)  # demo i -> i
@@ -31,10 +31,13 @@ def test_paired_batch_is_pure_in_the_step_and_carries_each_demos_codes():
     j = a["code_r"][:, 0].astype(int)
     np.testing.assert_array_equal(a["motion"], ds.motion[idx])
     np.testing.assert_array_equal(a["image"], ds.rgbd[idx])
-    np.testing.assert_array_equal(a["retrieved"], ds.motion[j])
+    assert "retrieved" not in a  # a latent-space loss reads the neighbour's code, not its motion
     assert all(jj in pairs[i] for i, jj in zip(idx, j))
     np.testing.assert_array_equal(a["extra"], np.ones(2))
-    assert "code" not in base.paired_batch(ds, spec, pairs)(5)
+    plain = base.paired_batch(ds, spec, pairs)(5)  # without codes: the neighbours' motions
+    assert "code" not in plain and "code_r" not in plain
+    np.testing.assert_array_equal(plain["motion"], a["motion"])
+    np.testing.assert_array_equal(plain["retrieved"], ds.motion[j])
 
 
 def test_autoencoder_stage_config_of_a_run_recorded_before_a_train_field_existed():
