@@ -97,6 +97,9 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     marks = scene_landmarks(env, scenes)
     if marks:  # where each plan ended: failures counted by the object they went for
         result["end_points"] = failure_modes.summarise(plan["positions"][:, -1], marks, res["success"])
+        if planner.model.uses_retrieval or cfg.retrieval == "cheat":  # and where refinement started
+            start = np.asarray(motion_lib.decode(planner.camera, jnp.asarray(plan["retrieved"]))[0])[:, -1]
+            result["starts"] = failure_modes.by_start(start, marks, res["success"])
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)

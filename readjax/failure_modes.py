@@ -5,6 +5,10 @@ A failure whose plan ends nearest a distractor went for the wrong object (a retr
 recognition error, which a local refinement cannot undo); one that ends nearest the target
 missed it by a distance (a precision error: depth or image position). Evaluation records both per
 episode, so a table's failures can be counted by kind without re-planning.
+
+The same measure on the *retrieved* motion (where refinement started) splits success by start:
+how often a plan that started at the wrong object, or far from the right one, still succeeded.
+That separates what retrieval limits from what refinement limits.
 """
 
 from __future__ import annotations
@@ -49,3 +53,41 @@ def summarise(end: np.ndarray, landmarks: dict[str, np.ndarray], success) -> dic
                                     "median_distance_m": float(np.median([d for m, d in failed if m == n]))}
                                 for n in landmarks if counts[n]},
     }
+
+
+START_BINS_M = (0.03, 0.06, 0.10)  # distance buckets (m) of a start to its nearest landmark
+
+
+def _bucket(d: float, bins=START_BINS_M) -> str:
+    lo = 0.0
+    for hi in bins:
+        if d < hi:
+            return f"{100 * lo:g}-{100 * hi:g} cm"
+        lo = hi
+    return f">= {100 * lo:g} cm"
+
+
+def _bucket_labels(bins=START_BINS_M) -> list[str]:
+    """Every bucket's label, nearest first."""
+    edges = (0.0, *bins)
+    return [_bucket(0.5 * (lo + hi), bins) for lo, hi in zip(edges, bins)] + [_bucket(bins[-1], bins)]
+
+
+def by_start(start: np.ndarray, landmarks: dict[str, np.ndarray], success, bins=START_BINS_M) -> dict:
+    """Success split by where each plan started (the retrieved motion's end point, (B, 3)): per
+    nearest landmark group and distance bucket, ``{group: {bucket: {"episodes", "succeeded"}}}``,
+    plus each episode's start group and distance. Buckets with no episode are left out."""
+    success = np.asarray(success, bool)
+    nearest, dist = nearest_landmarks(start, landmarks)
+    table: dict[str, dict[str, dict[str, int]]] = {}
+    for n in landmarks:
+        for b in _bucket_labels(bins):
+            members = [ok for m, d, ok in zip(nearest, dist, success) if m == n and _bucket(d, bins) == b]
+            if members:
+                table.setdefault(n, {})[b] = {"episodes": len(members), "succeeded": int(sum(members))}
+    return {"start_nearest": nearest, "start_distance_m": np.round(dist, 4).tolist(), "success_by_start": table}
+
+
+def bucket_rank(label: str, bins=START_BINS_M) -> int:
+    """A bucket label's place in :func:`_bucket_labels` (nearest first), for sorting."""
+    return _bucket_labels(bins).index(label)

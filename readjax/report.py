@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from readjax import tasks
+from readjax import failure_modes, tasks
 from readjax.config import field_defaults
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
@@ -283,6 +283,34 @@ def across_lines(results: list[dict]) -> list[str]:
     return lines + [""]
 
 
+def start_lines(results: list[dict]) -> list[str]:
+    """Per task with landmarks, each retrieving row's success split by where refinement started
+    (``failure_modes.by_start``, recorded by evaluation): succeeded / episodes per start group and
+    distance. It shows which failures retrieval caused and which refinement did not undo."""
+    with_starts = [r for r in results if r.get("starts")]
+    if not with_starts:
+        return []
+    lines = ["## Where refinement started (tasks with landmarks)", "",
+             "Succeeded / episodes, split by the retrieved motion's end point: the landmark it lies nearest "
+             "and how far from it. A plan that starts at a distractor has to be moved to the target by "
+             "refinement; one that starts far from the target has to be moved a long way.", ""]
+    for task in sorted({r["task"] for r in with_starts}):
+        rows = sorted((r for r in with_starts if r["task"] == task), key=lambda r: natural_key(row_label(r)))
+        cols: list[tuple[str, str]] = []
+        for r in rows:
+            for group, buckets in r["starts"]["success_by_start"].items():
+                cols += [(group, b) for b in buckets if (group, b) not in cols]
+        cols.sort(key=lambda c: (c[0] != "target", c[0], failure_modes.bucket_rank(c[1])))
+        lines += [f"| {tasks.code_of(task)} | " + " | ".join(f"{g} {b}" for g, b in cols) + " |",
+                  "|---|" + "---|" * len(cols)]
+        for r in rows:
+            by = r["starts"]["success_by_start"]
+            cells = [(f"{by[g][b]['succeeded']} / {by[g][b]['episodes']}" if b in by.get(g, {}) else "–") for g, b in cols]
+            lines.append(f"| {row_label(r)} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
+
+
 def sweeps(runs_root: str | Path) -> list[dict]:
     return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))]
 
@@ -319,6 +347,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     for reference in compare:
         lines += comparison_lines(listed, reference)
     lines += across_lines(by_protocol["main"])
+    lines += start_lines(by_protocol["main"])
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]

@@ -25,6 +25,19 @@ def test_nearest_landmark_and_failure_counts():
         failure_modes.nearest_landmarks(end, {"target": marks["target"][:2]})
 
 
+def test_success_split_by_where_refinement_started():
+    marks = {"target": np.zeros((5, 1, 3)), "distractor": np.tile([[[1.0, 0.0, 0.0]]], (5, 1, 1))}
+    start = np.array([[0, 0, 0.01], [0, 0, 0.02], [0, 0, 0.07], [0, 0, 0.3], [0.98, 0, 0]])
+    s = failure_modes.by_start(start, marks, [True, False, True, False, False])
+    assert s["start_nearest"] == ["target"] * 4 + ["distractor"]
+    assert s["success_by_start"] == {
+        "target": {"0-3 cm": {"episodes": 2, "succeeded": 1}, "6-10 cm": {"episodes": 1, "succeeded": 1},
+                   ">= 10 cm": {"episodes": 1, "succeeded": 0}},
+        "distractor": {"0-3 cm": {"episodes": 1, "succeeded": 0}}}
+    assert list(s["success_by_start"]["target"]) == ["0-3 cm", "6-10 cm", ">= 10 cm"]  # nearest first
+    assert [failure_modes.bucket_rank(b) for b in ("0-3 cm", "3-6 cm", "6-10 cm", ">= 10 cm")] == [0, 1, 2, 3]
+
+
 def test_reach_target_landmarks_are_the_spheres():
     """RT's target landmark is the sphere its predicate measures against, the distractors the other two."""
     env = tasks.make("reach_target")

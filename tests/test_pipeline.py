@@ -91,6 +91,12 @@ def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
     # RT has landmarks: every plan's end point is classified (target or distractor)
     assert len(result["end_points"]["nearest_landmark"]) == 4
     assert set(result["end_points"]["nearest_landmark"]) <= {"target", "distractor"}
+    # and READ retrieves: success is split by where refinement started, every episode counted once
+    starts = result["starts"]
+    assert len(starts["start_nearest"]) == 4 and set(starts["start_nearest"]) <= {"target", "distractor"}
+    by = starts["success_by_start"]
+    assert sum(c["episodes"] for b in by.values() for c in b.values()) == 4
+    assert sum(c["succeeded"] for b in by.values() for c in b.values()) == sum(result["success"])
 
 
 def test_refine_report_on_the_trained_run(run, tmp_path, capsys):

@@ -130,3 +130,27 @@ def test_across_trainings_groups_replicates_of_one_recipe(tmp_path):
     section = out.read_text().split("## Across trainings")[1].split("## Provenance")[0]
     assert "| RT | read_a: spe_N10 (0)<br>read_b: spe_N10 (1)<br>read_c: spe_N10 (2) | 79 / 51 / 60 | 63.3 | 51-79 |" in section
     assert "read_cos" not in section
+
+
+def test_where_refinement_started_table(tmp_path):
+    """Rows that record where refinement started get one table per task: succeeded / episodes per
+    start group and distance, target groups first and nearest first; rows without it are absent."""
+    runs = tmp_path / "runs"
+    _write(runs, "reach_target", "read_a", "spe_N10", 0.5)
+    _write(runs, "reach_target", "read_b", "spe_N10", 0.25)
+    _write(runs, "reach_target", "det", "direct", 0.7)
+    by = {"read_a": {"distractor": {"0-3 cm": {"episodes": 1, "succeeded": 0}},
+                     "target": {"6-10 cm": {"episodes": 1, "succeeded": 1}, "0-3 cm": {"episodes": 2, "succeeded": 1}}},
+          "read_b": {"target": {"0-3 cm": {"episodes": 4, "succeeded": 1}}}}
+    for run, table in by.items():
+        f = runs / "reach_target" / run / "eval" / "spe_N10.json"
+        r = json.loads(f.read_text())
+        r["starts"] = {"success_by_start": table}
+        f.write_text(json.dumps(r))
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out)]) == 0
+    section = out.read_text().split("## Where refinement started")[1].split("## Provenance")[0]
+    assert "| RT | target 0-3 cm | target 6-10 cm | distractor 0-3 cm |" in section
+    assert "| read_a: spe_N10 | 1 / 2 | 1 / 1 | 0 / 1 |" in section
+    assert "| read_b: spe_N10 | 1 / 4 | – | – |" in section
+    assert "det" not in section
