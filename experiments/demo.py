@@ -3,7 +3,7 @@ fixed test episodes and print the success table — sized for a laptop CPU (~15-
 
 Steps (each resumable; re-running skips what is done):
   1. expert demos for the task (batched MJX rollouts) + the fixed test episodes
-  2. READ with the cpu preset: its 3000 autoencoder steps, 2000 of its 3000 denoiser steps (fewer
+  2. READ with the cpu preset: its 3000 autoencoder steps, 2000 of its 5000 denoiser steps (fewer
      and READ does not yet refine its retrieval: BENCHMARKS.md section 8e). 1000 demonstrations
      cost about a minute to generate and give retrieval (and the training pairs, K = 50
      neighbours) a dense database

@@ -56,7 +56,7 @@ def test_override_train():
     has set it; without one, such keys are left to the model sections (and rejected there)."""
     cfgs = config.override(config.presets("cpu"), ["train.steps=5", "K=4", "augment=no", "lr=1e-3", "vae.width=64"])
     assert (cfgs["train"].steps, cfgs["train"].K, cfgs["train"].augment, cfgs["train"].lr) == (5, 4, False, 1e-3)
-    assert cfgs["vae"].width == 64 and config.presets("cpu")["train"].steps == 3000
+    assert cfgs["vae"].width == 64 and config.presets("cpu")["train"].steps == 5000
     assert set(config.presets("paper")) == set(config.SECTIONS) | {"train"}
     for bad, match in [("train.foo=1", "TrainConfig has no field"), ("episodes=x", "expected int"),
                        ("augment= true", "boolean"), ("train.K=0", "positive"), ("steps", "key=value")]:
