@@ -233,15 +233,17 @@ def with_defaults(configs: dict) -> dict:
 
 def training_group(r: dict) -> str | None:
     """What a result measures apart from which training produced it: the task, the method, every
-    config except ``train.seed``, and the evaluation (name and protocol settings). Results with the
-    same group and different training seeds are replicates of one recipe; None when the result does
-    not record its configs."""
+    config except ``train.seed``, the training set (its fingerprint, where recorded: the same
+    recipe on another machine's data is another experiment) and the evaluation (name and protocol
+    settings). Results with the same group and different training seeds are replicates of one
+    recipe; None when the result does not record its configs."""
     configs = r.get("configs")
     if not configs:
         return None
     configs = with_defaults(configs)
     configs["train"] = {k: v for k, v in configs.get("train", {}).items() if k != "seed"}
-    return json.dumps([r["task"], r.get("method"), configs, r.get("name"), r.get("eval_config")], sort_keys=True)
+    return json.dumps([r["task"], r.get("method"), configs, r.get("train_fingerprint"), r.get("name"),
+                       r.get("eval_config")], sort_keys=True)
 
 
 def across_trainings(results: list[dict]) -> list[dict]:

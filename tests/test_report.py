@@ -125,11 +125,14 @@ def test_across_trainings_groups_replicates_of_one_recipe(tmp_path):
     write("read_b", 0.51, 1, schedule="staircase")  # recorded by a newer readjax: the default, explicit
     write("read_c", 0.60, 2)
     write("read_cos", 0.90, 0, schedule="cosine")  # another recipe, one training: no group
+    write("read_other_data", 0.70, 3)  # the recipe on another training set: no group either
+    f = runs / "reach_target" / "read_other_data" / "eval" / "spe_N10.json"
+    f.write_text(json.dumps(dict(json.loads(f.read_text()), train_fingerprint="another")))
     out = tmp_path / "results.md"
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out)]) == 0
     section = out.read_text().split("## Across trainings")[1].split("## Provenance")[0]
     assert "| RT | read_a: spe_N10 (0)<br>read_b: spe_N10 (1)<br>read_c: spe_N10 (2) | 79 / 51 / 60 | 63.3 | 51-79 |" in section
-    assert "read_cos" not in section
+    assert "read_cos" not in section and "read_other_data" not in section
 
 
 def test_where_refinement_started_table(tmp_path):
