@@ -35,6 +35,9 @@ def parser() -> argparse.ArgumentParser:
                         "step (readjax.diffusion.refine)")
     p.add_argument("--retrieval", default="spe", choices=("spe", "cheat"), help="SPE, or the oracle")
     p.add_argument("--rank", type=_cli.positive_int, default=1, help="oracle: the rank-th nearest neighbour")
+    p.add_argument("--candidates", type=_cli.positive_int, default=1,
+                   help="refine SPE's top-C retrievals and keep, per image, the plan that one more refinement "
+                        "step moves least (1: the paper's top-1; beyond the paper, see README)")
     p.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std on test RGB (Table 9)")
     p.add_argument("--brightness", type=float, default=1.0, help="brightness factor on test RGB (Table 9)")
     p.add_argument("--data", default=None, help="dataset root (default: the one the run was trained on)")
@@ -62,6 +65,8 @@ def default_name(args, uses_retrieval: bool = True, iterative: bool = True, defa
         parts.append("direct")
     if refine_update not in (None, "renoise") and iterative and n != 0:
         parts.append(refine_update)
+    if getattr(args, "candidates", 1) > 1:
+        parts.append(f"top{args.candidates}")
     if args.noise:
         parts.append(f"noise{args.noise:g}")
     if args.brightness != 1.0:
@@ -95,7 +100,7 @@ def main(argv=None) -> None:
     cfg = evaluation.EvalConfig(episodes=args.episodes, N=0 if args.no_refine else args.N,
                                 retrieval=args.retrieval, rank=args.rank, batch_size=args.batch_size,
                                 seed=args.seed, videos=args.videos, image_noise=args.noise,
-                                brightness=args.brightness)
+                                brightness=args.brightness, candidates=args.candidates)
     model = planner.model
     if args.refine is not None:
         if not hasattr(model, "set_refine_update"):

@@ -36,6 +36,7 @@ class EvalConfig:
     videos: int = 4  # rollouts rendered to the MP4 (0 = none)
     image_noise: float = 0.0  # Table 9 perturbations of the test image
     brightness: float = 1.0
+    candidates: int = 1  # SPE candidates refined, the one with the smallest fixed-point residual kept
 
 
 def perturb_images(rgbd: np.ndarray, cfg: EvalConfig, seed: int) -> np.ndarray:
@@ -68,7 +69,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         idx = np.arange(s, s + bs) % len(ds)  # fixed batch shape: one compile
         key = jax.random.fold_in(jax.random.key(cfg.seed), s)
         p = planner.plan(images[idx], key, N=n_steps, retrieval_method=cfg.retrieval,
-                         gt_motion=ds.motion[idx], rank=cfg.rank)
+                         gt_motion=ds.motion[idx], rank=cfg.rank, candidates=cfg.candidates)
         take = min(bs, len(ds) - s)
         plans.append(jax.tree.map(lambda x: x[:take], vars(p)))
     plan = {k: np.concatenate([p[k] for p in plans]) for k in plans[0]}

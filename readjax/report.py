@@ -242,8 +242,9 @@ def training_group(r: dict) -> str | None:
         return None
     configs = with_defaults(configs)
     configs["train"] = {k: v for k, v in configs.get("train", {}).items() if k != "seed"}
+    eval_config = {"candidates": 1, **(r.get("eval_config") or {})}  # recorded since 2026-12-02
     return json.dumps([r["task"], r.get("method"), configs, r.get("train_fingerprint"), r.get("name"),
-                       r.get("eval_config")], sort_keys=True)
+                       eval_config], sort_keys=True)
 
 
 def across_trainings(results: list[dict]) -> list[dict]:

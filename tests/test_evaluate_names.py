@@ -21,6 +21,8 @@ def test_cold_refinement_is_named_where_it_applies():
     assert _name([], default_n=100, refine_update="cold") == "spe_N100_cold"
     assert _name(["--no-refine"], default_n=100, refine_update="cold") == "spe_N0"  # nothing refined
     assert _name(["--N", "10"], default_n=100, refine_update="renoise") == "spe_N10"  # the paper's loop
+    assert _name(["--N", "10", "--candidates", "3"], default_n=100, refine_update="cold") == "spe_N10_cold_top3"
+    assert _name(["--N", "10", "--candidates", "1"], default_n=100, refine_update="cold") == "spe_N10_cold"
 
 
 def test_vpsde_has_no_retrieval_part():

@@ -57,6 +57,40 @@ def test_a_plan_does_not_depend_on_its_batch(run, n, update):
         # reachable poses; tests/sim/test_execute.py checks IK batched = alone on identical poses.
 
 
+def test_candidates_keep_the_plan_with_the_smallest_fixed_point_residual(run):
+    """candidates = 3: each image's plan is the refinement of one of SPE's 3 nearest retrievals, the
+    one whose fixed-point residual is smallest; candidates = 1 is the plain top-1 plan; options that
+    cannot apply are refused."""
+    from readjax.planner import fixed_point_residual
+
+    data, run_dir = run
+    planner = Planner.load(run_dir)
+    planner.model.set_refine_update("cold")
+    test = store.load_dataset(data / "reach_target" / "test").resized(planner.image_size)
+    key = jax.random.key(0)
+    top1 = planner.plan(test.rgbd, key, N=2)
+    np.testing.assert_array_equal(planner.plan(test.rgbd, key, N=2, candidates=1).motion, top1.motion)
+    best = planner.plan(test.rgbd, key, N=2, candidates=3)
+    feats = planner.encode(test.rgbd)
+    order = np.argsort(np.asarray(planner.model.spe_distances(feats, planner.db_uv, planner.db_tokens)), axis=1)[:, :3]
+    assert order[:, 0].tolist() == top1.retrieved_index.tolist()
+    residuals = []
+    for c in range(3):
+        m = planner.model.generate(feats, planner.db_motion[order[:, c]], key, 2)
+        residuals.append(np.asarray(fixed_point_residual(planner.model, planner.camera, feats, m, key)))
+        kept = best.retrieved_index == order[:, c]
+        np.testing.assert_allclose(best.motion[kept], np.asarray(m)[kept], atol=1e-5)
+    residuals = np.stack(residuals, axis=1)
+    assert all(idx in order[i] for i, idx in enumerate(best.retrieved_index))
+    chosen = [list(order[i]).index(idx) for i, idx in enumerate(best.retrieved_index)]
+    np.testing.assert_array_equal(chosen, residuals.argmin(axis=1))
+    for kwargs, match in [(dict(N=0, candidates=3), "N > 0"), (dict(N=2, candidates=0), "positive"),
+                          (dict(N=2, candidates=3, retrieval_method="cheat", gt_motion=test.motion), "SPE"),
+                          (dict(N=2, candidates=99), "exceeds")]:
+        with pytest.raises(ValueError, match=match):
+            planner.plan(test.rgbd, key, **kwargs)
+
+
 def test_train_writes_checkpoints_metrics_and_plots(run):
     _, run_dir = run
     for stage in ("vae", "read"):
