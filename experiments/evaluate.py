@@ -65,7 +65,7 @@ def default_name(args, uses_retrieval: bool = True, iterative: bool = True, defa
         parts.append("direct")
     if refine_update not in (None, "renoise") and iterative and n != 0:
         parts.append(refine_update)
-    if getattr(args, "candidates", 1) > 1:
+    if args.candidates > 1:
         parts.append(f"top{args.candidates}")
     if args.noise:
         parts.append(f"noise{args.noise:g}")

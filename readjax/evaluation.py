@@ -78,6 +78,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
                           keep_traces=cfg.videos > 0)  # scenes already checked against the images
     t_exec = time.time() - t0 - t_plan
     rate = float(np.mean(res["success"]))
+    retrieved_pos = _positions(planner.camera, plan["retrieved"])  # where each plan's refinement started
     result = {
         "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
         "method": planner.spec.get("method", "read"), "name": name,
@@ -85,7 +86,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "episodes": len(ds), "seeds": ds.seeds.tolist(), "scenes": "stored (guard passed)", "success": res["success"].astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         # mean world-frame distance between the retrieved and the ground-truth end-effector paths
-        "retrieval_error_m": _path_distance(planner.camera, plan["retrieved"], ds.motion),
+        "retrieval_error_m": float(np.mean(np.linalg.norm(retrieved_pos - _positions(planner.camera, ds.motion), axis=-1))),
         "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None,
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
@@ -99,8 +100,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     if marks:  # where each plan ended: failures counted by the object they went for
         result["end_points"] = failure_modes.summarise(plan["positions"][:, -1], marks, res["success"])
         if planner.model.uses_retrieval or cfg.retrieval == "cheat":  # and where refinement started
-            start = np.asarray(motion_lib.decode(planner.camera, jnp.asarray(plan["retrieved"]))[0])[:, -1]
-            result["starts"] = failure_modes.by_start(start, marks, res["success"])
+            result["starts"] = failure_modes.by_start(retrieved_pos[:, -1], marks, res["success"])
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -165,8 +165,6 @@ jax.tree_util.register_pytree_node(
     _AttrTree, lambda d: (list(d.values()), list(d.keys())), lambda keys, vals: _AttrTree(zip(keys, vals)))
 
 
-def _path_distance(camera, a: np.ndarray, b: np.ndarray) -> float:
-    """Mean distance (m) between the end-effector positions of two motion batches (B, 101, 10)."""
-    pa = np.asarray(motion_lib.decode(camera, jnp.asarray(a))[0])
-    pb = np.asarray(motion_lib.decode(camera, jnp.asarray(b))[0])
-    return float(np.mean(np.linalg.norm(pa - pb, axis=-1)))
+def _positions(camera, motions: np.ndarray) -> np.ndarray:
+    """World end-effector positions (B, 101, 3) of a motion batch (B, 101, 10)."""
+    return np.asarray(motion_lib.decode(camera, jnp.asarray(motions))[0])

@@ -58,19 +58,10 @@ def summarise(end: np.ndarray, landmarks: dict[str, np.ndarray], success) -> dic
 START_BINS_M = (0.03, 0.06, 0.10)  # distance buckets (m) of a start to its nearest landmark
 
 
-def _bucket(d: float, bins=START_BINS_M) -> str:
-    lo = 0.0
-    for hi in bins:
-        if d < hi:
-            return f"{100 * lo:g}-{100 * hi:g} cm"
-        lo = hi
-    return f">= {100 * lo:g} cm"
-
-
 def _bucket_labels(bins=START_BINS_M) -> list[str]:
-    """Every bucket's label, nearest first."""
+    """Every bucket's label, nearest first: [0, b1), [b1, b2), ..., [b_last, inf)."""
     edges = (0.0, *bins)
-    return [_bucket(0.5 * (lo + hi), bins) for lo, hi in zip(edges, bins)] + [_bucket(bins[-1], bins)]
+    return [f"{100 * lo:g}-{100 * hi:g} cm" for lo, hi in zip(edges, bins)] + [f">= {100 * bins[-1]:g} cm"]
 
 
 def by_start(start: np.ndarray, landmarks: dict[str, np.ndarray], success, bins=START_BINS_M) -> dict:
@@ -79,12 +70,14 @@ def by_start(start: np.ndarray, landmarks: dict[str, np.ndarray], success, bins=
     plus each episode's start group and distance. Buckets with no episode are left out."""
     success = np.asarray(success, bool)
     nearest, dist = nearest_landmarks(start, landmarks)
+    labels = _bucket_labels(bins)
+    bucket = np.searchsorted(np.asarray(bins), dist, side="right")  # d < b1 -> 0, ..., d >= b_last -> last
     table: dict[str, dict[str, dict[str, int]]] = {}
     for n in landmarks:
-        for b in _bucket_labels(bins):
-            members = [ok for m, d, ok in zip(nearest, dist, success) if m == n and _bucket(d, bins) == b]
-            if members:
-                table.setdefault(n, {})[b] = {"episodes": len(members), "succeeded": int(sum(members))}
+        for k, label in enumerate(labels):
+            members = success[(np.asarray(nearest) == n) & (bucket == k)]
+            if members.size:
+                table.setdefault(n, {})[label] = {"episodes": int(members.size), "succeeded": int(members.sum())}
     return {"start_nearest": nearest, "start_distance_m": np.round(dist, 4).tolist(), "success_by_start": table}
 
 

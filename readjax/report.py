@@ -3,6 +3,7 @@ Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenan
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
 import json
 import re
@@ -13,6 +14,7 @@ import numpy as np
 
 from readjax import failure_modes, tasks
 from readjax.config import field_defaults
+from readjax.evaluation import EvalConfig
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
 
@@ -231,6 +233,9 @@ def with_defaults(configs: dict) -> dict:
     return out
 
 
+_EVAL_DEFAULTS = {f.name: f.default for f in dataclasses.fields(EvalConfig)}
+
+
 def training_group(r: dict) -> str | None:
     """What a result measures apart from which training produced it: the task, the method, every
     config except ``train.seed``, the training set (its fingerprint, where recorded: the same
@@ -242,7 +247,8 @@ def training_group(r: dict) -> str | None:
         return None
     configs = with_defaults(configs)
     configs["train"] = {k: v for k, v in configs.get("train", {}).items() if k != "seed"}
-    eval_config = {"candidates": 1, **(r.get("eval_config") or {})}  # recorded since 2026-12-02
+    # an evaluation recorded before an EvalConfig field existed ran with its default
+    eval_config = {**_EVAL_DEFAULTS, **(r.get("eval_config") or {})}
     return json.dumps([r["task"], r.get("method"), configs, r.get("train_fingerprint"), r.get("name"),
                        eval_config], sort_keys=True)
 
