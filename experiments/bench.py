@@ -221,9 +221,11 @@ def bench_planner(args) -> dict:
                     continue
                 key = jax.random.key(1)
                 t0 = time.perf_counter()
-                planner.plan(images, key, N=n)
+                # one refinement of N steps per plan (rounds=1): a run's sde.rounds = R costs R times the
+                # refinement part of a cell, and cells stay comparable with earlier JSONs
+                planner.plan(images, key, N=n, rounds=1)
                 first = time.perf_counter() - t0
-                times = _time(lambda: planner.plan(images, key, N=n), args.repeats)
+                times = _time(lambda: planner.plan(images, key, N=n, rounds=1), args.repeats)
                 t = statistics.median(times)
                 timed.setdefault(b, []).append((n, t))
                 cell = {"preset": preset, "batch": b, "N": n, "ms_per_call": round(1e3 * t, 1),

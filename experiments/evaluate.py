@@ -38,6 +38,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--candidates", type=_cli.positive_int, default=1,
                    help="refine SPE's top-C retrievals and keep, per image, the plan that one more refinement "
                         "step moves least (1: the paper's top-1; beyond the paper, see README)")
+    p.add_argument("--rounds", type=_cli.positive_int, default=None,
+                   help="refine R times in a row, each round from the previous round's plan as the retrieved "
+                        "motion (default: the run's sde.rounds, 2 in the cpu preset; 1: the paper's single "
+                        "refinement; beyond the paper, see README)")
     p.add_argument("--noise", type=float, default=0.0, help="Gaussian noise std on test RGB (Table 9)")
     p.add_argument("--brightness", type=float, default=1.0, help="brightness factor on test RGB (Table 9)")
     p.add_argument("--data", default=None, help="dataset root (default: the one the run was trained on)")
@@ -50,10 +54,10 @@ def parser() -> argparse.ArgumentParser:
 
 
 def default_name(args, uses_retrieval: bool = True, iterative: bool = True, default_n: int | None = None,
-                 refine_update: str | None = None) -> str:
+                 refine_update: str | None = None, default_rounds: int = 1) -> str:
     """Result name from the options that apply to the method: the retrieval (when the method
     retrieves, or the oracle is asked for), N (when it samples iteratively; ``default_n`` when --N
-    is not given; ``_cold`` when READ refines with the cold-diffusion update, ``refine_update``);
+    is not given; ``_cold`` / ``_cold_anchor`` when READ refines with a cold-diffusion update, ``refine_update``);
     ``direct`` for a one-pass method without retrieval."""
     n = 0 if args.no_refine else (args.N if args.N is not None else default_n)
     parts = []
@@ -67,6 +71,9 @@ def default_name(args, uses_retrieval: bool = True, iterative: bool = True, defa
         parts.append(refine_update)
     if args.candidates > 1:
         parts.append(f"top{args.candidates}")
+    rounds = default_rounds if args.rounds is None else args.rounds
+    if rounds > 1 and iterative and n != 0:
+        parts.append(f"rounds{rounds}")
     if args.noise:
         parts.append(f"noise{args.noise:g}")
     if args.brightness != 1.0:
@@ -100,14 +107,15 @@ def main(argv=None) -> None:
     cfg = evaluation.EvalConfig(episodes=args.episodes, N=0 if args.no_refine else args.N,
                                 retrieval=args.retrieval, rank=args.rank, batch_size=args.batch_size,
                                 seed=args.seed, videos=args.videos, image_noise=args.noise,
-                                brightness=args.brightness, candidates=args.candidates)
+                                brightness=args.brightness, candidates=args.candidates,
+                                rounds=args.rounds)
     model = planner.model
     if args.refine is not None:
         if not hasattr(model, "set_refine_update"):
             raise ValueError(f"--refine applies to READ only, not to {planner.spec.get('method')}")
         model.set_refine_update(args.refine)
     name = args.name or default_name(args, model.uses_retrieval, model.iterative, planner.n_steps,
-                                     evaluation.refine_update(model))
+                                     evaluation.refine_update(model), planner.default_rounds)
     result = evaluation.evaluate(planner, test_ds, cfg, out_dir=Path(args.run) / "eval", name=name,
                                  progress=not args.quiet)
     label = f"{result['method']} ({name})"

@@ -37,6 +37,7 @@ class EvalConfig:
     image_noise: float = 0.0  # Table 9 perturbations of the test image
     brightness: float = 1.0
     candidates: int = 1  # SPE candidates refined, the one with the smallest fixed-point residual kept
+    rounds: int | None = None  # refinements in a row, each from the previous plan; None = the run's sde.rounds
 
 
 def perturb_images(rgbd: np.ndarray, cfg: EvalConfig, seed: int) -> np.ndarray:
@@ -62,6 +63,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     scenes = ds.scenes
     images = perturb_images(ds.rgbd, cfg, cfg.seed)
     n_steps = planner.n_steps if cfg.N is None else cfg.N
+    rounds = (planner.default_rounds if n_steps > 0 else 1) if cfg.rounds is None else cfg.rounds
     t0 = time.time()
     plans = []
     bs = min(cfg.batch_size, len(ds))
@@ -69,7 +71,8 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         idx = np.arange(s, s + bs) % len(ds)  # fixed batch shape: one compile
         key = jax.random.fold_in(jax.random.key(cfg.seed), s)
         p = planner.plan(images[idx], key, N=n_steps, retrieval_method=cfg.retrieval,
-                         gt_motion=ds.motion[idx], rank=cfg.rank, candidates=cfg.candidates)
+                         gt_motion=ds.motion[idx], rank=cfg.rank, candidates=cfg.candidates,
+                         rounds=rounds)
         take = min(bs, len(ds) - s)
         plans.append(jax.tree.map(lambda x: x[:take], vars(p)))
     plan = {k: np.concatenate([p[k] for p in plans]) for k in plans[0]}
@@ -87,7 +90,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         # mean world-frame distance between the retrieved and the ground-truth end-effector paths
         "retrieval_error_m": float(np.mean(np.linalg.norm(retrieved_pos - _positions(planner.camera, ds.motion), axis=-1))),
-        "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None,
+        "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None, "rounds": rounds,
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
         # which data: the test split as stored (experiments.verify records the same hash) and the

@@ -3,7 +3,8 @@
 Loading restores the trained models, loads the task's training set as the retrieval database and
 precomputes its SPE features once. ``plan`` validates the input, encodes each image once,
 retrieves a motion (SPE, or the oracle for experiments), refines it with N denoising steps (one
-jitted ``lax.scan``, compiled once per batch shape and N), converts the result to world poses with
+jitted ``lax.scan``, compiled once per batch shape and N; the run's ``sde.rounds`` times in a row,
+each round from the previous plan), converts the result to world poses with
 the dataset's camera, and solves a joint trajectory by IK.
 """
 
@@ -62,6 +63,14 @@ class Planner:
                           if model.uses_retrieval else None)
         self._ik = jax.jit(jax.vmap(functools.partial(solve_waypoints, self.env, cfg=ExecConfig())))
 
+    @property
+    def default_rounds(self) -> int:
+        """Refinement rounds when ``plan`` is given none: the run's ``sde.rounds`` (the cpu preset: 2),
+        1 for a method that neither retrieves nor refines."""
+        if not (self.model.uses_retrieval and self.model.iterative):
+            return 1
+        return int(getattr(self.model, "refine_rounds", 1))
+
     @classmethod
     def load(cls, run_dir: str | Path, data_root: str | Path | None = None, n_steps: int | None = None) -> "Planner":
         model = load_model(run_dir)
@@ -108,39 +117,61 @@ class Planner:
         raise ValueError(f"unknown retrieval {method!r}; use 'spe' or 'cheat'")
 
     def plan(self, rgbd, key: jax.Array, N: int | None = None, retrieval_method: str = "spe",
-             gt_motion=None, rank: int = 1, candidates: int = 1) -> Plan:
+             gt_motion=None, rank: int = 1, candidates: int = 1, rounds: int | None = None) -> Plan:
         """Plans for a batch of first frames (B, S, S, 4). N = 0 executes the retrieved motion.
 
         ``candidates`` > 1 (SPE retrieval, N > 0; beyond the paper, see README): refine each of
         SPE's top-``candidates`` retrievals and keep, per image, the refined plan that one more
         refinement step started from it moves least at its end point (:func:`fixed_point_residual`).
-        1 is the paper's top-1."""
+        1 is the paper's top-1.
+
+        ``rounds`` > 1 (a retrieval-based iterative method, N > 0; beyond the paper, see README):
+        refine, then refine again with the refined plan as the retrieved motion, ``rounds`` times in
+        all (:meth:`refine`). 1 is the paper's single refinement; None the run's default
+        (:attr:`default_rounds`)."""
         n = check_n_steps(self.n_steps if N is None else N, name="N")
-        if not isinstance(candidates, (int, np.integer)) or candidates < 1:
-            raise ValueError(f"candidates must be a positive integer, got {candidates!r}")
+        if rounds is None:
+            rounds = self.default_rounds if n > 0 else 1
+        for name, v in (("candidates", candidates), ("rounds", rounds)):
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        if rounds > 1 and (not self.model.uses_retrieval or not self.model.iterative or n == 0):
+            raise ValueError("rounds > 1 needs a retrieval-based iterative method and N > 0 (got method "
+                             f"{self.spec.get('method')!r}, N = {n})")
         feats = self.encode(rgbd)
         if candidates > 1:
             if retrieval_method != "spe" or not self.model.uses_retrieval or not self.model.iterative or n == 0:
                 raise ValueError("candidates > 1 needs SPE retrieval, a retrieval-based iterative method "
                                  f"and N > 0 (got retrieval {retrieval_method!r}, method "
                                  f"{self.spec.get('method')!r}, N = {n})")
-            return self._plan_candidates(feats, key, n, candidates)
+            return self._plan_candidates(feats, key, n, candidates, rounds)
         if self.model.uses_retrieval or retrieval_method == "cheat":
             idx = self.retrieve(feats, retrieval_method, gt_motion, rank)
         else:  # methods without retrieval start from noise; report the first database entry
             idx = np.zeros(feats.shape[0], np.int64)
         m_r = self.db_motion[jnp.asarray(idx)]
-        m = self.model.generate(feats, m_r, key, n)
+        m = self.refine(feats, m_r, key, n, rounds)
         return self._finish(np.asarray(m), np.asarray(m_r), idx)
 
-    def _plan_candidates(self, feats, key, n: int, candidates: int) -> Plan:
+    def refine(self, features, m_r, key: jax.Array, n: int, rounds: int = 1) -> jax.Array:
+        """``rounds`` refinements of N steps, each started from the previous one's plan as its
+        retrieved motion (round r draws its noise from ``fold_in(key, r)``; round 0 from ``key``, so
+        one round is exactly ``model.generate``). Why more than one: a refinement is anchored at its
+        start (the SDE's mean reverts to M_R), and the denoiser corrects a near start better than a
+        far one; the second round starts where the first ended (RT: BENCHMARKS.md 8l)."""
+        m = self.model.generate(features, m_r, key, n)
+        for r in range(1, rounds):
+            m = self.model.generate(features, m, jax.random.fold_in(key, r), n)
+        return m
+
+    def _plan_candidates(self, feats, key, n: int, candidates: int, rounds: int = 1) -> Plan:
         dist = self.model.spe_distances(feats, self.db_uv, self.db_tokens)
         if candidates > dist.shape[1]:
             raise ValueError(f"candidates = {candidates} exceeds the retrieval database ({dist.shape[1]} demos)")
         order = np.asarray(jnp.argsort(dist, axis=1)[:, :candidates])  # (B, C), nearest first
         plans, residuals = [], []
         for c in range(candidates):
-            m = self.model.generate(feats, self.db_motion[jnp.asarray(order[:, c])], key, n)
+            m = self.refine(feats, self.db_motion[jnp.asarray(order[:, c])], key, n, rounds)
             plans.append(np.asarray(m))
             residuals.append(np.asarray(fixed_point_residual(self.model, self.camera, feats, m, key)))
         pick = select_candidates(np.stack(residuals, axis=1))

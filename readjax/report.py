@@ -233,7 +233,9 @@ def with_defaults(configs: dict) -> dict:
     return out
 
 
-_EVAL_DEFAULTS = {f.name: f.default for f in dataclasses.fields(EvalConfig)}
+# what an evaluation recorded before an EvalConfig field existed ran with: the field's default, and
+# one refinement round (rounds arrived later; evaluations record the rounds they ran)
+_EVAL_DEFAULTS = {**{f.name: f.default for f in dataclasses.fields(EvalConfig)}, "rounds": 1}
 
 
 def training_group(r: dict) -> str | None:

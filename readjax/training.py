@@ -25,7 +25,7 @@ from flax import struct
 from tqdm.auto import tqdm
 
 from readjax import provenance, sharding
-from readjax.config import field_defaults
+from readjax.config import INFERENCE_ONLY, field_defaults
 
 
 def _field_default(section: str, name: str):
@@ -47,6 +47,16 @@ def with_new_defaults(old: dict, new: dict) -> dict:
                 if k not in values and _field_default(section, k) == v:
                     values[k] = v
         out[section] = values
+    return out
+
+
+def without_inference_only(config: dict) -> dict:
+    """``config`` without the fields that change inference only (``config.INFERENCE_ONLY``): what a
+    stage's identity is checked on."""
+    out = dict(config)
+    for section, names in INFERENCE_ONLY.items():
+        if isinstance(out.get(section), dict):
+            out[section] = {k: v for k, v in out[section].items() if k not in names}
     return out
 
 
@@ -138,10 +148,11 @@ class Stage:
                 raise CheckpointError(
                     f"{self.dir} was trained on dataset {old.get('dataset_fingerprint')}, not "
                     f"{self.fingerprint}; use a new --out (or --restart to overwrite)")
-            old_config = with_new_defaults(old.get("config", {}), self.config)
-            if old_config != self.config:
-                diff = sorted(k for k in set(old_config) | set(self.config)
-                              if old_config.get(k) != self.config.get(k))
+            old_config = without_inference_only(with_new_defaults(old.get("config", {}), self.config))
+            new_config = without_inference_only(self.config)
+            if old_config != new_config:
+                diff = sorted(k for k in set(old_config) | set(new_config)
+                              if old_config.get(k) != new_config.get(k))
                 raise CheckpointError(f"{self.dir} was trained with another config (differs in {diff}); "
                                       f"use a new --out (or --restart to overwrite)")
         else:

@@ -23,6 +23,12 @@ def test_cold_refinement_is_named_where_it_applies():
     assert _name(["--N", "10"], default_n=100, refine_update="renoise") == "spe_N10"  # the paper's loop
     assert _name(["--N", "10", "--candidates", "3"], default_n=100, refine_update="cold") == "spe_N10_cold_top3"
     assert _name(["--N", "10", "--candidates", "1"], default_n=100, refine_update="cold") == "spe_N10_cold"
+    assert _name(["--N", "10", "--rounds", "2"], default_n=100, refine_update="cold_anchor") == "spe_N10_cold_anchor_rounds2"
+    assert _name(["--N", "10", "--rounds", "1"], default_n=100, refine_update="cold_anchor") == "spe_N10_cold_anchor"
+    # the run's default rounds (the cpu preset: 2) name the result unless --rounds overrides them
+    assert _name(["--N", "10"], default_n=100, refine_update="cold_anchor", default_rounds=2) == "spe_N10_cold_anchor_rounds2"
+    assert _name(["--N", "10", "--rounds", "1"], default_n=100, refine_update="cold_anchor", default_rounds=2) == "spe_N10_cold_anchor"
+    assert _name(["--no-refine"], default_n=100, refine_update="cold_anchor", default_rounds=2) == "spe_N0"
 
 
 def test_vpsde_has_no_retrieval_part():

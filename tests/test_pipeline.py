@@ -68,9 +68,9 @@ def test_candidates_keep_the_plan_with_the_smallest_fixed_point_residual(run):
     planner.model.set_refine_update("cold")
     test = store.load_dataset(data / "reach_target" / "test").resized(planner.image_size)
     key = jax.random.key(0)
-    top1 = planner.plan(test.rgbd, key, N=2)
-    np.testing.assert_array_equal(planner.plan(test.rgbd, key, N=2, candidates=1).motion, top1.motion)
-    best = planner.plan(test.rgbd, key, N=2, candidates=3)
+    top1 = planner.plan(test.rgbd, key, N=2, rounds=1)  # one refinement per candidate (rounds: below)
+    np.testing.assert_array_equal(planner.plan(test.rgbd, key, N=2, candidates=1, rounds=1).motion, top1.motion)
+    best = planner.plan(test.rgbd, key, N=2, candidates=3, rounds=1)
     feats = planner.encode(test.rgbd)
     order = np.argsort(np.asarray(planner.model.spe_distances(feats, planner.db_uv, planner.db_tokens)), axis=1)[:, :3]
     assert order[:, 0].tolist() == top1.retrieved_index.tolist()
@@ -91,6 +91,35 @@ def test_candidates_keep_the_plan_with_the_smallest_fixed_point_residual(run):
             planner.plan(test.rgbd, key, **kwargs)
 
 
+def test_rounds_refine_again_from_the_previous_plan(run):
+    """rounds = 2: the plan is a second refinement started from the first one's plan (noise from
+    fold_in(key, 1)), still reported against the database motion SPE retrieved; rounds = 1 is the
+    plain plan; rounds combine with candidates; rounds that cannot apply are refused."""
+    data, run_dir = run
+    planner = Planner.load(run_dir)
+    planner.model.set_refine_update("renoise")  # a stochastic loop: the second round's key matters
+    test = store.load_dataset(data / "reach_target" / "test").resized(planner.image_size)
+    key = jax.random.key(0)
+    once = planner.plan(test.rgbd, key, N=2, rounds=1)
+    assert planner.default_rounds == 2  # the cpu preset's sde.rounds: what plan() runs when given none
+    np.testing.assert_array_equal(planner.plan(test.rgbd, key, N=2).motion,
+                                  planner.plan(test.rgbd, key, N=2, rounds=2).motion)
+    twice = planner.plan(test.rgbd, key, N=2, rounds=2)
+    feats = planner.encode(test.rgbd)
+    by_hand = planner.model.generate(feats, jax.numpy.asarray(once.motion), jax.random.fold_in(key, 1), 2)
+    np.testing.assert_allclose(twice.motion, np.asarray(by_hand), atol=1e-5)
+    assert twice.retrieved_index.tolist() == once.retrieved_index.tolist()
+    np.testing.assert_array_equal(twice.retrieved, once.retrieved)
+    assert np.abs(twice.motion - once.motion).max() > 1e-4  # a second round is not the first again
+    planner.model.set_refine_update("cold")  # deterministic and per image: the kept plans can be recomputed
+    both = planner.plan(test.rgbd, key, N=2, candidates=2, rounds=2)
+    m_r = planner.db_motion[jax.numpy.asarray(both.retrieved_index)]
+    np.testing.assert_allclose(both.motion, np.asarray(planner.refine(feats, m_r, key, 2, rounds=2)), atol=1e-4)
+    for kwargs, match in [(dict(N=0, rounds=2), "N > 0"), (dict(N=2, rounds=0), "positive")]:
+        with pytest.raises(ValueError, match=match):
+            planner.plan(test.rgbd, key, **kwargs)
+
+
 def test_train_writes_checkpoints_metrics_and_plots(run):
     _, run_dir = run
     for stage in ("vae", "read"):
@@ -105,18 +134,21 @@ def test_plan_and_execute(run, capsys):
     assert _cli.run(evaluate_cli.main, argv) == 0
     out = capsys.readouterr().out
     assert "RT" in out and "success" in out
-    # the cpu preset refines with the cold update: its results carry the update in their name
-    assert (run_dir / "eval" / "spe_N2_cold.json").exists() and (run_dir / "eval" / "spe_N2_cold_overlay.png").exists()
-    assert (run_dir / "eval" / "spe_N2_cold_rollouts.mp4").stat().st_size > 1000
+    # the cpu preset refines with the anchored cold update in two rounds: its results carry both in their name
+    name = "spe_N2_cold_anchor_rounds2"
+    assert (run_dir / "eval" / f"{name}.json").exists() and (run_dir / "eval" / f"{name}_overlay.png").exists()
+    assert (run_dir / "eval" / f"{name}_rollouts.mp4").stat().st_size > 1000
+    assert json.loads((run_dir / "eval" / f"{name}.json").read_text())["eval_config"]["rounds"] == 2
 
 
 def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
     data, run_dir = run
     argv = ["--run", str(run_dir), "--episodes", "4", "--N", "2", "--batch-size", "4", "--videos", "0",
-            "--refine", "renoise", "--quiet"]
+            "--refine", "renoise", "--rounds", "1", "--quiet"]
     assert _cli.run(evaluate_cli.main, argv) == 0
     result = json.loads((run_dir / "eval" / "spe_N2.json").read_text())
     assert result["eval_config"]["refine_update"] == "renoise" and result["episodes"] == 4
+    assert result["eval_config"]["rounds"] == 1
     # provenance: the data it ran on and the code that ran it
     test = store.load_dataset(data / "reach_target" / "test")
     assert result["test_fingerprint"] == test.fingerprint

@@ -93,6 +93,18 @@ def test_stage_from_an_older_readjax_accepts_new_fields_at_their_defaults(tmp_pa
         Stage(tmp_path, "toy", SPEC, {**new, "denoiser": {**new["denoiser"], "input_skip": True}}, "fp")
 
 
+def test_stage_resumes_when_only_an_inference_setting_changed(tmp_path):
+    """sde.update (the refinement step) is used at inference only: a stage trained under "cold"
+    resumes under "cold_anchor"; a change of a field training reads (sde.lam) is still refused."""
+    cfg = {"sde": {"lam": 0.5, "update": "cold"}}
+    Stage(tmp_path, "toy", SPEC, cfg, "fp").fit(params0(), loss_fn, sample, progress=False, stop_at=5)
+    state = Stage(tmp_path, "toy", SPEC, {"sde": {"lam": 0.5, "update": "cold_anchor"}}, "fp").fit(
+        params0(), loss_fn, sample, progress=False, stop_at=10)
+    assert int(state.step) == 10
+    with pytest.raises(CheckpointError, match=r"differs in \['sde'\]"):
+        Stage(tmp_path, "toy", SPEC, {"sde": {"lam": 1.0, "update": "cold"}}, "fp")
+
+
 def test_learning_rate_schedules(tmp_path):
     """staircase: lr x lr_decay every lr_decay_every steps (constant at lr_decay 1); cosine: lr at
     step 0, half at mid-stage, 0 at the last step, whatever lr_decay says; a cosine stage resumes

@@ -29,11 +29,11 @@ from readjax.config.baselines import READ_O_SAMPLERS, VPSDE_SAMPLERS, ReadOConfi
 from readjax.config.parse import (ALIASES, configs_from_dict, configs_to_dict, field_defaults, from_dict, override,
                                   to_dict)
 from readjax.config.presets import METHOD_SECTIONS, SECTIONS, TRAIN_PRESETS, preset, preset_names, presets
-from readjax.config.sections import (DEFAULT_N, REFINE_UPDATES, DenoiserConfig, SDEConfig, TrainConfig,
+from readjax.config.sections import (DEFAULT_N, INFERENCE_ONLY, REFINE_UPDATES, DenoiserConfig, SDEConfig, TrainConfig,
                                      VAEConfig)
 
 __all__ = [
-    "ALIASES", "DEFAULT_N", "METHOD_SECTIONS", "READ_O_SAMPLERS", "REFINE_UPDATES", "SECTIONS",
+    "ALIASES", "DEFAULT_N", "INFERENCE_ONLY", "METHOD_SECTIONS", "READ_O_SAMPLERS", "REFINE_UPDATES", "SECTIONS",
     "TRAIN_PRESETS", "VPSDE_SAMPLERS", "DenoiserConfig", "ReadOConfig", "ResNetConfig", "SDEConfig",
     "TrainConfig", "VAEConfig", "VPSDEConfig", "configs_from_dict", "configs_to_dict", "field_defaults", "from_dict",
     "override", "preset", "preset_names", "presets", "to_dict",

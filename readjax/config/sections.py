@@ -135,6 +135,9 @@ class DenoiserConfig:
 
 
 REFINE_UPDATES = ("renoise", "cold", "cold_anchor")
+# Config fields that change inference only: a stage trained under one value serves every other, so a
+# run's stages resume (and its identity check passes) whichever value a later preset sets.
+INFERENCE_ONLY = {"sde": ("update", "rounds")}
 SCHEDULES = ("staircase", "cosine")
 DEFAULT_N = 100  # sampler / refinement steps when none are asked for (the paper's setting A)
 
@@ -167,6 +170,9 @@ class SDEConfig:
     t_min: float = 1e-5
     update: str = "renoise"
     latent_norm: bool = False
+    # refinements in a row at inference, each started from the previous one's plan as its retrieved
+    # motion (``Planner.refine``); 1 is the paper's single refinement
+    rounds: int = 1
 
     def __post_init__(self):
         if self.lam <= 0:
@@ -175,6 +181,8 @@ class SDEConfig:
             raise ValueError(f"SDEConfig.t_min must be in (0, 1), got {self.t_min}")
         if self.theta_start < 0 or self.theta1 < 0 or self.theta_start + self.theta1 <= 0:
             raise ValueError("SDEConfig theta0 and theta1 must be >= 0 and not both 0")
+        if isinstance(self.rounds, bool) or not isinstance(self.rounds, int) or self.rounds < 1:
+            raise ValueError(f"SDEConfig.rounds must be a positive int, got {self.rounds!r}")
         if self.update not in REFINE_UPDATES:
             raise ValueError(f"SDEConfig.update must be one of {', '.join(REFINE_UPDATES)}, got {self.update!r}")
 

@@ -162,6 +162,12 @@ class RunModel:
         self.image_size = int(self.spec["image_size"])
         self.fingerprint = self.spec["dataset_fingerprint"]
 
+    @property
+    def refine_rounds(self) -> int:
+        """Refinement rounds the run's configs ask for at inference (``sde.rounds``; 1 without an SDE)."""
+        sde = self.configs.get("sde")
+        return 1 if sde is None else sde.rounds
+
     def network_params(self, stage: str, template):
         """The trained parameters of this run's network stage ``stage`` (``base.network_stage_spec``)."""
         spec = base.network_stage_spec(self.configs["train"])

@@ -69,12 +69,14 @@ def test_train_and_plan(data, name):
     assert np.all(np.isfinite(plan.motion)) and np.all(np.isfinite(plan.positions))
     again = planner.plan(rgbd, jax.random.key(0), N=2)
     np.testing.assert_array_equal(plan.motion, again.motion)  # same key -> same plan
-    other = planner.model.generate(planner.encode(rgbd), plan.retrieved, jax.random.key(1), 2)
-    if method == "deterministic" or refine_update(planner.model) == "cold":
+    # the plan is the planner's refinement (the run's rounds) of what it retrieved
+    other = planner.refine(planner.encode(rgbd), plan.retrieved, jax.random.key(1), 2, planner.default_rounds)
+    cold = refine_update(planner.model) in ("cold", "cold_anchor")
+    if method == "deterministic" or cold:
         np.testing.assert_array_equal(other, plan.motion)  # no sampling: the key is ignored
     else:
         assert not np.allclose(other, plan.motion)  # another key -> another sample
-    if refine_update(planner.model) == "cold":  # the paper's loop re-noises: the key matters
+    if cold:  # the paper's loop re-noises: the key matters
         planner.model.set_refine_update("renoise")
         paper = planner.model.generate(planner.encode(rgbd), plan.retrieved, jax.random.key(0), 2)
         assert not np.allclose(planner.model.generate(planner.encode(rgbd), plan.retrieved, jax.random.key(1), 2),

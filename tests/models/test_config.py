@@ -20,12 +20,13 @@ def test_presets():
     # the paper's SDE on the raw code (sde.latent_norm, readjax.diffusion.latent, is an option)
     assert paper["sde"] == SDEConfig(lam=0.5, theta1=2.0, theta0=None, t_min=1e-5, latent_norm=False)
     assert not config.preset("cpu")["sde"].latent_norm
-    # the paper preset is the paper; the cpu preset departs in exactly four settings (README)
+    # the paper preset is the paper; the cpu preset departs in exactly five settings (README)
     full = config.presets("paper")
     assert (full["vae"].kl_weight, full["train"].K, full["sde"].update) == (0.01, 3, "renoise")
     assert not (full["denoiser"].input_skip or full["denoiser"].normalize_motion)
     cpu = config.presets("cpu")
-    assert (cpu["vae"].kl_weight, cpu["train"].K, cpu["sde"].update) == (1e-4, 50, "cold")
+    assert (cpu["vae"].kl_weight, cpu["train"].K, cpu["sde"].update) == (1e-4, 50, "cold_anchor")
+    assert (full["sde"].rounds, cpu["sde"].rounds) == (1, 2)
     assert cpu["denoiser"].input_skip and cpu["denoiser"].normalize_motion
     assert config.preset("cpu")["denoiser"].image_size == 64
     with pytest.raises(ValueError, match="unknown preset"):
