@@ -37,6 +37,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--retrieval", default="spe", choices=("spe", "cheat"),
                    help="where refinement starts: SPE retrieval (the planner's) or the oracle's nearest "
                         "neighbour of the ground truth (Tables 4-5: refinement from the best start)")
+    p.add_argument("--rounds", type=_cli.positive_int, default=None,
+                   help="refinements of N steps in a row, each from the previous one's plan (default: the "
+                        "run's sde.rounds, 2 in the cpu preset)")
     p.add_argument("--batch-size", type=_cli.positive_int, default=50)
     p.add_argument("--out", default=None, help="JSON path")
     p.add_argument("--quiet", action="store_true")
@@ -65,9 +68,10 @@ def main(argv=None) -> None:
         splits[name] = (ds.rgbd[:n], ds.motion[:n])
     say = None if args.quiet else (lambda msg: print(f"  {msg}", flush=True))
     result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say,
-                                  retrieval=args.retrieval)
+                                  retrieval=args.retrieval, rounds=args.rounds)
     result.update(run=str(args.run), task=spec["task"], images=args.images)
-    suffix = "" if args.retrieval == "spe" else f"_{args.retrieval}"
+    suffix = ("" if args.retrieval == "spe" else f"_{args.retrieval}") + (
+        f"_rounds{result['rounds']}" if result["rounds"] > 1 else "")
     out = Path(args.out) if args.out else Path(args.run) / "diagnostics" / f"refine_{result['update']}{suffix}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))

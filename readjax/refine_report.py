@@ -40,10 +40,11 @@ def summarise(errors: dict[str, np.ndarray]) -> dict[str, float]:
 
 
 def refine_history(planner, images: np.ndarray, key: jax.Array, n_steps: int, batch_size: int = 50,
-                   retrieval: str = "spe", gt: np.ndarray | None = None):
-    """Retrieved motions (B, 101, 10) and every step's M̂0 (N, B, 101, 10) for READ's planner.
-    ``retrieval`` "spe" (the planner's) or "cheat" (the oracle's nearest neighbour of ``gt``: what
-    refinement does from the best start the database holds)."""
+                   retrieval: str = "spe", gt: np.ndarray | None = None, rounds: int = 1):
+    """Retrieved motions (B, 101, 10) and every step's M̂0 (rounds * N, B, 101, 10) for READ's
+    planner. ``retrieval`` "spe" (the planner's) or "cheat" (the oracle's nearest neighbour of
+    ``gt``: what refinement does from the best start the database holds). ``rounds`` > 1 refines
+    again from each round's last M̂0, with the keys ``Planner.refine`` uses."""
     model = planner.model
     retrieved, hist = [], []
     for s in range(0, len(images), batch_size):
@@ -52,11 +53,15 @@ def refine_history(planner, images: np.ndarray, key: jax.Array, n_steps: int, ba
         feats = planner.encode(images[idx])
         gt_batch = None if gt is None else np.asarray(gt)[idx]
         m_r = jnp.asarray(planner.database.motion[planner.retrieve(feats, retrieval, gt_batch)])
-        _, h = refine(model.ae, model.ae_params, model.den, model.den_params, feats, m_r,
-                      jax.random.fold_in(key, s), n_steps, model.configs["sde"], return_history=True,
-                      latent=model.latent)
+        start, steps, batch_key = m_r, [], jax.random.fold_in(key, s)
+        for r in range(rounds if n_steps > 0 else 1):
+            _, h = refine(model.ae, model.ae_params, model.den, model.den_params, feats, start,
+                          batch_key if r == 0 else jax.random.fold_in(batch_key, r), n_steps,
+                          model.configs["sde"], return_history=True, latent=model.latent)
+            steps.append(np.asarray(h)[:, :take])
+            start = h[-1] if n_steps > 0 else start
         retrieved.append(np.asarray(m_r)[:take])
-        hist.append(np.asarray(h)[:, :take])
+        hist.append(np.concatenate(steps))
     return np.concatenate(retrieved), np.concatenate(hist, axis=1)
 
 
@@ -97,10 +102,12 @@ def require_read(planner) -> None:
 
 
 def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT_NS, seed: int = 0,
-           batch_size: int = 50, progress=None, retrieval: str = "spe") -> dict:
+           batch_size: int = 50, progress=None, retrieval: str = "spe", rounds: int | None = None) -> dict:
     """``splits``: name -> (images at the planner's size, ground-truth motions). Returns rows
     (split, N, errors), plus per-step drift and end-depth error along the largest N. ``retrieval``:
-    where refinement starts, "spe" (the planner's) or "cheat" (the oracle, Tables 4-5)."""
+    where refinement starts, "spe" (the planner's) or "cheat" (the oracle, Tables 4-5). ``rounds``:
+    refinements of N steps in a row (None: the run's, ``Planner.default_rounds``)."""
+    rounds = planner.default_rounds if rounds is None else rounds
     require_read(planner)
     rows, loops, clean = [], {}, {}
     n_max = max(ns)
@@ -112,7 +119,8 @@ def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT
                 plans, _ = refine_history(planner, images, jax.random.key(seed), 0, batch_size, retrieval, gt)
                 hist = None
             else:
-                _, hist = refine_history(planner, images, jax.random.key(seed), n, batch_size, retrieval, gt)
+                _, hist = refine_history(planner, images, jax.random.key(seed), n, batch_size, retrieval, gt,
+                                         rounds)
                 plans = hist[-1]
             rows.append({"split": split, "N": n, **summarise(end_errors(planner.camera, plans, gt,
                                                                          planner.image_size))})
@@ -122,12 +130,13 @@ def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT
                 loops[split] = {"N": n, "drift_mean_abs": drift.tolist(), "end_depth_err_mm_mean": depth.tolist()}
         clean[split] = clean_input_errors(planner, images, gt, batch_size=batch_size)
     return {"rows": rows, "loops": loops, "clean_input": clean, "update": planner.model.configs["sde"].update,
-            "retrieval": retrieval}
+            "retrieval": retrieval, "rounds": rounds}
 
 
 def format_report(result: dict) -> str:
     """The table of the refinement issue (one line per split and N) and the loop's trajectory."""
-    lines = [f"refinement update: {result['update']}, retrieval: {result.get('retrieval', 'spe')}",
+    lines = [f"refinement update: {result['update']}, retrieval: {result.get('retrieval', 'spe')}, "
+             f"rounds: {result.get('rounds', 1)} (N = steps per round)",
              "| images | N | end uv err (px, median) | end depth err (mm, median) | 3D err (cm, median) | within 3 cm |",
              "|---|---|---|---|---|---|"]
     for r in result["rows"]:

@@ -178,10 +178,16 @@ def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
     train0 = result["rows"][0]
     # a training image retrieves its own demonstration: N = 0 is the exact answer
     assert train0["err_cm_median"] == 0 and train0["within_3cm"] == 1.0
-    assert len(result["loops"]["test"]["drift_mean_abs"]) == 2
-    assert len(result["loops"]["test"]["end_depth_err_mm_mean"]) == 3
+    # the run's two rounds of N = 3 steps: 6 predictions along the loop, 5 drifts between them
+    assert result["rounds"] == 2
+    assert len(result["loops"]["test"]["drift_mean_abs"]) == 5
+    assert len(result["loops"]["test"]["end_depth_err_mm_mean"]) == 6
     assert [r["t"] for r in result["clean_input"]["train"]] == [None, 1.0, 0.5, 0.1, 0.01]
     assert "| train | 3 |" in capsys.readouterr().out
+    assert _cli.run(refine_report_cli.main, argv + ["--rounds", "1"]) == 0
+    once = json.loads(out.read_text())
+    assert once["rounds"] == 1 and len(once["loops"]["test"]["end_depth_err_mm_mean"]) == 3
+    assert once["rows"][0] == result["rows"][0]  # N = 0 (the retrieved motion) has no rounds
     assert _cli.run(refine_report_cli.main, argv + ["--N", "-1"]) == 2
     # from the oracle's start: the test plans at N = 0 are each episode's nearest training demo
     assert _cli.run(refine_report_cli.main, argv + ["--retrieval", "cheat", "--N", "0"]) == 0
