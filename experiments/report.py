@@ -9,6 +9,7 @@ examples:
   python -m experiments.report --runs runs/ --exclude 'read_try*' --out docs/results.md
   python -m experiments.report --runs runs/ --compare 'read: spe_N100'   # paired tests vs that row
   python -m experiments.report --runs results/ --compare 'read: retrieval only (N=0)' deterministic
+  python -m experiments.report --runs results/ --main read_v3_5k deterministic_v3_5k   # the paper's main table
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import argparse
 import sys
 
 from experiments import _cli
+from readjax.config import preset_names
 
 
 def parser() -> argparse.ArgumentParser:
@@ -30,14 +32,29 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--compare", nargs="+", default=[], metavar="ROW",
                    help="add, for each ROW, a table of every row's difference to it (a method label of the "
                         "tables, e.g. 'read: spe_N100') on the same test episodes, with exact McNemar p-values")
+    p.add_argument("--main", nargs=2, default=None, metavar=("READ_RUN", "DET_RUN"),
+                   help="open the report with the paper's main table: READ at N = 100 (with the --main-preset refinement) "
+                        "and N = 0 from run READ_RUN, Deterministic from run DET_RUN, on every task that has "
+                        "them, Avg12 / Avg16, the paper's READ beside them, and paired tests per task")
+    p.add_argument("--main-preset", default="cpu", choices=preset_names(),
+                   help="READ's cells in --main are evaluations with this preset's refinement (sde.update, "
+                        "sde.rounds)")
     return p
 
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
+    from readjax import main_table
     from readjax.report import write_report
 
-    text = write_report(args.runs, args.out, tuple(args.exclude), tuple(args.compare))
+    main_section = None
+    if args.main:
+        read_run, det_run = args.main
+
+        def main_section(results, chart):
+            return main_table.lines(results, read_run, det_run, chart, preset_name=args.main_preset)
+
+    text = write_report(args.runs, args.out, tuple(args.exclude), tuple(args.compare), main=main_section)
     print(text.split("## Provenance")[0])
     print(f"wrote {args.out}")
 

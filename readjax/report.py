@@ -9,6 +9,7 @@ import json
 import re
 from math import comb
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -327,9 +328,11 @@ def sweeps(runs_root: str | Path) -> list[dict]:
 
 
 def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),
-                 compare: tuple[str, ...] | str | None = ()) -> str:
+                 compare: tuple[str, ...] | str | None = (),
+                 main: Callable[[list[dict], Path], list[str]] | None = None) -> str:
     """The markdown report of every evaluation under ``runs_root``; ``compare``: the rows to pair
-    every other row with (one paired table each)."""
+    every other row with (one paired table each); ``main``: builds a section shown first, from the
+    results and a chart path beside ``out`` (``readjax.main_table.lines`` for the paper's main table)."""
     compare = (compare,) if isinstance(compare, str) else tuple(compare or ())
     results = collect(runs_root, exclude)
     if not results:
@@ -348,6 +351,8 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
         "the fixed test episodes. Avg12/Avg16 appear only when all their tasks are present; otherwise "
         "`Avg` is the mean over the tasks present.", "",
     ]
+    if main is not None:
+        lines += main(listed, out.with_name(out.stem + "_main.png"))
     chart_shown = False
     for p, heading in PROTOCOLS.items():
         if by_protocol[p]:

@@ -1,0 +1,153 @@
+"""The paper's main table built from committed results: READ at N = 100, its own retrieval (N = 0)
+and Deterministic, per task in the paper's column order with Avg12 / Avg16 and the paper's READ
+beside them, then per task paired tests (READ N = 100 against N = 0 and against Deterministic).
+
+Which runs fill the rows is named by the caller (``experiments.report --main READ_RUN DET_RUN``):
+``results/`` holds many trainings per task, and the table must say which recipe it reports. A READ
+cell is the run's evaluation on clean test images with SPE top-1 retrieval, one candidate and the
+refinement of a named preset (its ``sde.update`` and ``sde.rounds``, inference-only settings that
+a run trained under an older preset can be evaluated with), so an evaluation of another inference
+setting of the same run never fills it by accident.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from readjax import paper, tasks
+from readjax.config import preset
+from readjax.report import _EVAL_DEFAULTS, bar_chart, mcnemar_p, protocol, with_defaults
+
+READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
+
+
+def _eval_config(r: dict) -> dict:
+    return {**_EVAL_DEFAULTS, **(r.get("eval_config") or {})}
+
+
+def refinement_of(preset_name: str) -> tuple[str, int]:
+    """(update, rounds): the refinement a preset's READ plans with."""
+    sde = preset(preset_name)["sde"]
+    return sde.update, sde.rounds
+
+
+def is_read_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
+    """Whether ``r`` is a clean-image SPE top-1 evaluation at N = ``n`` with one candidate and, for
+    n > 0, the refinement ``(update, rounds)`` (an evaluation that predates a field ran with that
+    field's old default, which its run's configs then also hold)."""
+    cfg = _eval_config(r)
+    if protocol(r) != "main" or cfg["retrieval"] != "spe" or cfg["rank"] != 1 or cfg["candidates"] != 1:
+        return False
+    if cfg["N"] != n:
+        return False
+    if n == 0:
+        return True
+    sde = with_defaults(r.get("configs") or {"sde": {}}).get("sde", {})
+    return (cfg.get("refine_update", sde.get("update")), cfg["rounds"]) == tuple(refinement)
+
+
+def select(results: list[dict], read_run: str, det_run: str,
+           refinement: tuple[str, int]) -> tuple[dict[str, dict[str, dict]], list[str]]:
+    """The three rows (row -> task -> result) and notes on cells that more than one file could
+    fill (the first file in path order is used)."""
+    rows: dict[str, dict[str, dict]] = {READ_ROW: {}, RETRIEVAL_ROW: {}, DET_ROW: {}}
+    notes = []
+    for r in sorted(results, key=lambda r: r["_file"]):
+        run = r["_run_name"]
+        row = None
+        if run == read_run and is_read_eval(r, 100, refinement):
+            row = READ_ROW
+        elif run == read_run and is_read_eval(r, 0, refinement):
+            row = RETRIEVAL_ROW
+        elif run == det_run and protocol(r) == "main" and r.get("name") == "direct":
+            row = DET_ROW
+        if row is None:
+            continue
+        if r["task"] in rows[row]:
+            notes.append(f"{row}, {tasks.code_of(r['task'])}: `{rows[row][r['task']]['_file']}` used, "
+                         f"`{r['_file']}` also qualifies")
+            continue
+        rows[row][r["task"]] = r
+    return rows, notes
+
+
+def rates(rows: dict[str, dict[str, dict]]) -> dict[str, dict[str, float]]:
+    """Row -> task code -> success % (plus Avg12 / Avg16 where all member tasks are present and
+    ``Avg (k)``: the mean over the k tasks READ was measured on), with the paper's READ row last."""
+    measured = [tasks.code_of(t) for t in rows[READ_ROW]]
+    measured = [c for c in tasks.AVG16 if c in measured]
+    out: dict[str, dict[str, float]] = {}
+    for label, by_task in rows.items():
+        table = {tasks.code_of(t): 100.0 * r["success_rate"] for t, r in by_task.items()}
+        out[label] = _with_averages(table, measured)
+    out[paper.READ_LABEL] = _with_averages(dict(paper.READ_TABLE7_A), measured)
+    return out
+
+
+def _with_averages(table: dict[str, float], measured: list[str]) -> dict[str, float]:
+    table = dict(table)
+    for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
+        if all(c in table for c in codes):
+            table[name] = paper.mean_over(table, codes)
+    if measured and all(c in table for c in measured):
+        table[f"Avg ({len(measured)})"] = paper.mean_over(table, measured)
+    return table
+
+
+def paired(a: dict, b: dict) -> str:
+    """``+wins / -losses, p=...`` of result ``a`` against ``b`` on the episodes both ran."""
+    x = dict(zip(a.get("seeds", []), a.get("success", [])))
+    y = dict(zip(b.get("seeds", []), b.get("success", [])))
+    common = sorted(set(x) & set(y))
+    if not common:
+        return "no common episodes"
+    u, v = np.asarray([x[k] for k in common], bool), np.asarray([y[k] for k in common], bool)
+    return f"+{int((u & ~v).sum())} / -{int((~u & v).sum())}, p={mcnemar_p(u, v):.2g}"
+
+
+def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None = None,
+          preset_name: str = "cpu") -> list[str]:
+    """The main table section of the report (markdown lines); ``chart``: where to draw its bars;
+    READ's cells are evaluations with the refinement of preset ``preset_name``."""
+    refinement = refinement_of(preset_name)
+    rows, notes = select(results, read_run, det_run, refinement)
+    if not any(rows.values()):
+        raise ValueError(f"--main: no evaluation of run {read_run!r} or {det_run!r} qualifies (READ: SPE top-1, "
+                         f"N = 0, or N = 100 with the {preset_name} preset's refinement {refinement[0]} x "
+                         f"{refinement[1]} rounds; Deterministic: 'direct')")
+    table = rates(rows)
+    avg_cols = [c for c in ("Avg12", "Avg16") if any(c in r for r in table.values())]
+    avg_cols += sorted({c for r in table.values() for c in r if c.startswith("Avg (")})
+    cols = list(tasks.AVG16) + avg_cols
+    labels = {READ_ROW: f"READ (N=100): `{read_run}`", RETRIEVAL_ROW: f"retrieval only (N=0): `{read_run}`",
+              DET_ROW: f"Deterministic: `{det_run}`", paper.READ_LABEL: paper.READ_LABEL}
+    out = ["## Main table (the paper's layout)", "",
+           f"READ is run `{read_run}` on each task at N = 100 with the {preset_name} preset's refinement "
+           f"(`sde.update={refinement[0]}`, `sde.rounds={refinement[1]}`), on clean test images "
+           f"with SPE top-1 retrieval; retrieval only is the same run at N = 0; Deterministic is run `{det_run}`. "
+           "Success % over each task's test episodes; – = not measured yet. Avg12 / Avg16 appear once all their "
+           "tasks are measured; `Avg (k)` is the mean over the k tasks READ has been measured on, the paper's "
+           "row over the same tasks.", "",
+           "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for key, r in table.items():
+        out.append(f"| {labels[key]} | " + " | ".join(f"{r[c]:.1f}" if c in r else "–" for c in cols) + " |")
+    out.append("")
+    if chart is not None:
+        bar_chart({labels[k].replace("`", ""): v for k, v in table.items()}, chart)
+        out += [f"![main table]({chart.name})", ""]
+    out += ["Paired per task (exact McNemar on the same episodes: episodes only the first row solves / only "
+            "the second, two-sided p):", "",
+            "| task | READ N=100 vs N=0 | READ N=100 vs Deterministic |", "|---|---|---|"]
+    for code in tasks.AVG16:
+        task = tasks.canonical_name(code)
+        read = rows[READ_ROW].get(task)
+        if read is None:
+            continue
+        cells = [paired(read, other[task]) if task in other else "–" for other in (rows[RETRIEVAL_ROW], rows[DET_ROW])]
+        out.append(f"| {code} | " + " | ".join(cells) + " |")
+    out.append("")
+    if notes:
+        out += ["Cells more than one evaluation could fill:", ""] + [f"- {n}" for n in notes] + [""]
+    return out

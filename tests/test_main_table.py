@@ -1,0 +1,74 @@
+"""The paper's main table (experiments.report --main): which evaluation fills each cell, the
+averages, the paper's row beside ours, and the paired tests."""
+
+import json
+
+import pytest
+
+from experiments import _cli
+from experiments import report as report_cli
+from readjax import paper, tasks
+from readjax.config import preset
+
+
+def test_paper_row_reproduces_its_printed_averages():
+    assert list(paper.READ_TABLE7_A) == list(tasks.AVG16)
+    for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
+        assert paper.mean_over(paper.READ_TABLE7_A, codes) == pytest.approx(paper.READ_TABLE7_A_AVERAGES[name], abs=0.05)
+    with pytest.raises(KeyError, match="no rate for RT"):
+        paper.mean_over({"PC": 1.0}, ["PC", "RT"])
+
+
+def _write(root, task, run, name, success, method="read", **eval_config):
+    d = root / task / run / "eval"
+    d.mkdir(parents=True, exist_ok=True)
+    sde = preset("cpu")["sde"]
+    cfg = {"N": 100, "retrieval": "spe", "rank": 1, "candidates": 1, "image_noise": 0.0, "brightness": 1.0,
+           "rounds": sde.rounds, "refine_update": sde.update, **eval_config}
+    (d / f"{name}.json").write_text(json.dumps({
+        "task": task, "method": method, "name": name, "success_rate": sum(success) / len(success),
+        "seeds": list(range(len(success))), "success": success, "eval_config": cfg,
+        "configs": {"sde": {"update": "cold", "rounds": 1}}}))  # trained under an older preset
+
+
+def test_main_table_picks_the_preset_refinement_and_pairs_rows(tmp_path, capsys):
+    runs = tmp_path / "results"
+    ten = [True] * 10
+    _write(runs, "reach_target", "read_a", "spe_N100_now", [True] * 9 + [False])
+    _write(runs, "reach_target", "read_a", "spe_N100_cold", [False] * 10, refine_update="cold", rounds=1)
+    _write(runs, "reach_target", "read_a", "spe_N100_top3", [False] * 10, candidates=3)
+    _write(runs, "reach_target", "read_a", "spe_N100_noise", [False] * 10, image_noise=0.1)
+    _write(runs, "reach_target", "read_a", "spe_N0", [True] * 3 + [False] * 7, N=0)
+    _write(runs, "reach_target", "read_b", "spe_N100_now", [False] * 10)  # another run: not in the table
+    _write(runs, "reach_target", "det_a", "direct", [False] * 2 + [True] * 5 + [False] * 3, method="deterministic",
+           N=None)
+    _write(runs, "push_button", "read_a", "spe_N100_now", ten)
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det_a"]) == 0
+    text = out.read_text()
+    section = text.split("## Main table")[1].split("## Methods x tasks")[0]
+    head = "| method | " + " | ".join(tasks.AVG16) + " | Avg12 | Avg16 | Avg (2) |"
+    assert head in section
+    assert "| READ (N=100): `read_a` | – | 90.0 | 100.0 | – | – |" in section  # the paper's column order
+    assert section.count("| retrieval only (N=0): `read_a` | – | 30.0 | – |") == 1
+    assert "| Deterministic: `det_a` | – | 50.0 | – |" in section
+    assert "| – | – | 95.0 |" in section  # READ: no Avg12 / Avg16 yet, mean over RT and PB
+    paper_row = [line for line in section.splitlines() if line.startswith(f"| {paper.READ_LABEL}")][0]
+    assert paper_row.endswith("| 88.8 | 70.2 | 85.5 |")  # the paper over the same two tasks: (99 + 72) / 2
+    # RT: episodes 3-8 solved only at N = 100 (p = 2 / 2^6); 0, 1, 7, 8 only by READ against Deterministic
+    assert "| RT | +6 / -0, p=0.031 | +4 / -0, p=0.12 |" in section
+    assert "| PB | – | – |" in section
+    assert out.with_name("results_main.png").exists() and "![main table](results_main.png)" in section
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "nope", "nada"]) == 2
+    assert "no evaluation of run 'nope'" in capsys.readouterr().err
+
+
+def test_a_second_qualifying_evaluation_is_noted_not_mixed(tmp_path):
+    runs = tmp_path / "results"
+    _write(runs, "reach_target", "read_a", "a_first", [True] * 4)
+    _write(runs, "reach_target", "read_a", "b_second", [False] * 4)
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
+    section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
+    assert "| READ (N=100): `read_a` | – | 100.0 |" in section
+    assert "b_second.json` also qualifies" in section
