@@ -147,7 +147,7 @@ def build(preset: str, batch: int, n_demos: int = 256):
     dspec = StageSpec(steps=1, batch_size=batch, lr=train_cfg.lr, seed=1)
     vspec = StageSpec(steps=1, batch_size=batch, lr=train_cfg.vae_lr, seed=0)
     pairs = retrieval.training_pairs(cam, ds.motion, min(train_cfg.K, n_demos - 1), clamp=True)
-    batch_fn = base.paired_batch(ds, dspec, pairs, codes=codes)
+    batch_fn = base.paired_batch(ds, dspec, pairs, n_demos, codes=codes)
     loss = read_lib.read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights,
                               latent)
     idx = np.arange(batch) % n_demos

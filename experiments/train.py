@@ -9,8 +9,16 @@ examples:
   python -m experiments.train --task reach_target --model read --preset cpu --data data/ --out runs/
   python -m experiments.train --task PB --preset cpu --set steps=500 --set L=1.0 --name read_L1
   python -m experiments.train --task RT --preset paper --stage read      # only the diffusion stage
+  python -m experiments.train --task RT --model vpsde --set val_episodes=100 --set stop_patience=2000
 
-config keys for --set: train.* (vae_steps, steps, batch, lr, K, augment, episodes, ...), vae.*
+The convergence rule (every method, every stage): with train.val_episodes > 0 the last demos of
+the training split are held out and their loss is logged every train.val_every steps (val_loss in
+metrics.jsonl and loss.png); with train.stop_patience > 0 a stage stops once that loss has not
+improved by more than train.stop_min_delta (relative) over the last stop_patience steps, the step
+counts being caps. RUN/<stage>/stop.json records when and why each stage stopped.
+
+config keys for --set: train.* (vae_steps, steps, batch, lr, K, augment, episodes, val_episodes,
+stop_patience, ...), vae.*
 (width, layers, kinematic, kl_weight, ...), denoiser.* (image_size, conv_dims, d_model, ...),
 sde.* (lam, theta1); L and T are Table 7's lambda and theta1.
 """
@@ -68,6 +76,9 @@ def main(argv=None) -> None:
             last = [json.loads(ln) for ln in f.read_text().splitlines() if ln.strip()][-1]
             summary[f"{stage}_final_loss"] = round(last["loss"], 5)
             summary[f"{stage}_steps"] = last["step"]
+        stop = run_dir / stage / "stop.json"
+        if stop.exists():
+            summary[f"{stage}_stopped"] = json.loads(stop.read_text())["reason"]
     print(json.dumps(summary))
 
 

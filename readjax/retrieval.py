@@ -36,22 +36,27 @@ def _pair_features(cam: CameraParams, motions) -> np.ndarray:
     return np.asarray(feat.reshape(m.shape[0], -1), np.float64)
 
 
-def training_pairs(cam: CameraParams, motions, k: int, clamp: bool = False) -> np.ndarray:
-    """(N, k) indices of each demo's k nearest OTHER demos (self excluded), nearest first.
+def training_pairs(cam: CameraParams, motions, k: int, clamp: bool = False, pool: int | None = None) -> np.ndarray:
+    """(N, k) indices of each demo's k nearest OTHER demos (self excluded), nearest first, chosen
+    among the first ``pool`` demos (default all): with a held-out validation slice at the end, every
+    demo, held out or not, is paired with training demos only, as a test image is at inference.
 
     ``clamp``: a pool larger than the other demos (a preset's K on a small dataset) becomes all
     of them, with a warning, instead of an error."""
     n = len(motions)
-    if clamp and n >= 2 and k > n - 1:
-        warnings.warn(f"K = {k} neighbours asked for, but the training set has {n} demos: using all "
-                      f"{n - 1} others", stacklevel=2)
-        k = n - 1
-    if not 1 <= k < n:
-        raise ValueError(f"K must be in [1, N-1] = [1, {n - 1}], got {k}")
+    pool = n if pool is None else pool
+    if not 2 <= pool <= n and not (pool == n == 1):
+        raise ValueError(f"the neighbour pool must hold 2..{n} demos, got {pool}")
+    if clamp and pool >= 2 and k > pool - 1:
+        warnings.warn(f"K = {k} neighbours asked for, but the training set has {pool} demos: using all "
+                      f"{pool - 1} others", stacklevel=2)
+        k = pool - 1
+    if not 1 <= k < pool:
+        raise ValueError(f"K must be in [1, N-1] = [1, {pool - 1}], got {k}")
     f = _pair_features(cam, motions)
     sq = (f**2).sum(1)
-    d = sq[:, None] + sq[None, :] - 2 * f @ f.T
-    np.fill_diagonal(d, np.inf)
+    d = sq[:, None] + sq[None, :pool] - 2 * f @ f[:pool].T
+    d[np.arange(pool), np.arange(pool)] = np.inf
     return np.argsort(d, axis=1, kind="stable")[:, :k].astype(np.int32)
 
 

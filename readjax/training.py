@@ -86,6 +86,27 @@ class StageSpec:
     log_every: int = 25
     keep: int = 3
     seed: int = 0
+    val_every: int = 250  # validation loss every this many steps (when the stage has validation batches)
+    stop_patience: int = 0  # stop when the validation loss has not improved for this many steps (0 = never)
+    stop_min_delta: float = 0.01  # an improvement must beat the best so far by this fraction
+
+
+def stop_decision(history: list[tuple[int, float]], spec: StageSpec) -> dict | None:
+    """The convergence rule on a validation history [(step, loss), ...] (in step order): stop once
+    no loss has beaten the best before it by more than ``stop_min_delta`` (relative) within the last
+    ``stop_patience`` steps. Returns the record of why (``stop.json``) or None to go on."""
+    if spec.stop_patience <= 0 or not history:
+        return None
+    best_step, best = history[0]
+    for step, loss in history[1:]:
+        if loss < best * (1.0 - spec.stop_min_delta):
+            best_step, best = step, loss
+    last = history[-1][0]
+    if last - best_step < spec.stop_patience:
+        return None
+    return {"stopped_at": last, "reason": "converged", "best_val_loss": best, "best_step": best_step,
+            "rule": f"validation loss not improved by more than {spec.stop_min_delta:.0%} over the last "
+                    f"{spec.stop_patience} steps (best {best:.4g} at step {best_step})"}
 
 
 def learning_rate(spec: StageSpec):
@@ -181,11 +202,20 @@ class Stage:
         return out["state"]
 
     # -------------------------------------------------------------- training
+    def stop_record(self) -> dict | None:
+        """Why and when this stage finished (``stop.json``), or None while it has not."""
+        f = self.dir / "stop.json"
+        return json.loads(f.read_text()) if f.exists() else None
+
     def fit(self, params, loss_fn: Callable, sample_batch: Callable[[int], Any], progress: bool = True,
-            stop_at: int | None = None) -> TrainState:
+            stop_at: int | None = None, val_batches: list | None = None) -> TrainState:
         """Train to ``spec.steps`` (resuming from the latest checkpoint); returns the final state.
 
-        ``stop_at`` ends early at that step (after checkpointing), to test resuming.
+        ``val_batches``: fixed held-out batches; every ``spec.val_every`` steps their mean loss
+        (fixed noise) is logged as ``val_loss`` and, with ``spec.stop_patience``, the convergence
+        rule (:func:`stop_decision`) may end the stage early. A finished stage records when and why
+        in ``stop.json`` and returns at once when fitted again. ``stop_at`` ends early at that step
+        (after checkpointing), to test resuming.
         """
         spec = self.spec
         optimizer = make_optimizer(spec)
@@ -193,32 +223,50 @@ class Stage:
         if self.latest_step() is not None:
             state = self.restore(state)
         start = int(state.step)
+        if self.stop_record() is not None and self.stop_record()["stopped_at"] == start:
+            return state  # finished before (converged or at the cap)
         self._truncate_metrics(start)
+        history = [(r["step"], r["val_loss"]) for r in self.metrics() if "val_loss" in r]
         state = jax.device_put(state, sharding.replicated())
         step_fn = make_train_step(loss_fn, optimizer, jax.random.key(spec.seed))
+        val_loss = make_val_loss(loss_fn, val_batches, spec.seed) if val_batches else None
         end = spec.steps if stop_at is None else min(stop_at, spec.steps)
         bar = _bar(progress, self.name, spec.steps, start)
         log = open(self.dir / "metrics.jsonl", "a")
-        t0, acc = time.time(), []
+        t0, acc, stop = time.time(), [], None
         try:
             for step in range(start, end):
                 batch = sharding.shard_batch(sample_batch(step))
                 state, metrics = step_fn(state, batch)
                 acc.append(metrics)
-                if (step + 1) % spec.log_every == 0 or step + 1 == end:
+                validate = val_loss is not None and ((step + 1) % spec.val_every == 0 or step + 1 == spec.steps)
+                if (step + 1) % spec.log_every == 0 or step + 1 == end or validate:
                     m = {k: float(np.mean([float(a[k]) for a in acc])) for k in acc[0]}
                     acc = []
+                    if validate:
+                        m["val_loss"] = val_loss(state.params)
+                        history.append((step + 1, m["val_loss"]))
+                        stop = stop_decision(history, spec)
                     if not all(math.isfinite(v) for v in m.values()):
                         raise FloatingPointError(f"{self.name}: non-finite metrics at step {step + 1}: {m}")
                     log.write(json.dumps({"step": step + 1, "time_s": round(time.time() - t0, 2), **m}) + "\n")
                     log.flush()
-                    bar.set_postfix(loss=f"{m['loss']:.4g}")
-                if (step + 1) % spec.ckpt_every == 0 or step + 1 == end:
+                    bar.set_postfix(loss=f"{m['loss']:.4g}", **({"val": f"{m['val_loss']:.4g}"} if validate else {}))
+                if (step + 1) % spec.ckpt_every == 0 or step + 1 == end or stop is not None:
                     self.save(state)
                 bar.update(1)
+                if stop is not None:
+                    break
         finally:
             bar.close()
             log.close()
+        if stop is None and int(state.step) == spec.steps:
+            stop = {"stopped_at": spec.steps, "reason": "step cap", "rule": f"{spec.steps} steps"}
+            if history:
+                best_step, best = min(history, key=lambda h: h[1])
+                stop.update(best_val_loss=best, best_step=best_step)
+        if stop is not None:
+            (self.dir / "stop.json").write_text(json.dumps(stop, indent=2))
         self.plot()
         return state
 
@@ -243,11 +291,18 @@ class Stage:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        keys = [k for k in rows[0] if k not in ("step", "time_s", "grad_norm")]
+        keys = [k for k in rows[0] if k not in ("step", "time_s", "grad_norm", "val_loss")]
         fig, ax = plt.subplots(figsize=(6, 3.5))
         steps = [r["step"] for r in rows]
         for k in keys:
             ax.plot(steps, [r[k] for r in rows], label=k, lw=1.2 if k == "loss" else 0.8)
+        val = [(r["step"], r["val_loss"]) for r in rows if "val_loss" in r]
+        if val:
+            ax.plot(*zip(*val), "k.-", label="val_loss (held out)", lw=1.2, ms=3)
+        stop = self.stop_record()
+        if stop is not None:
+            ax.axvline(stop["stopped_at"], color="r", ls="--", lw=1,
+                       label=f"stop at {stop['stopped_at']}: {stop['reason']}")
         ax.set_yscale("log")
         ax.set_xlabel("step")
         ax.set_title(f"{self.name} training losses")
@@ -257,6 +312,19 @@ class Stage:
         fig.savefig(out, dpi=110)
         plt.close(fig)
         return out
+
+
+def make_val_loss(loss_fn: Callable, batches: list, seed: int) -> Callable[[Any], float]:
+    """params -> mean loss over the fixed validation ``batches``, each with its own fixed key (the
+    same noise at every validation, so the curve moves with the parameters only)."""
+    loss = jax.jit(lambda p, b, k: loss_fn(p, b, k)[0])
+    keys = [jax.random.fold_in(jax.random.key(seed), 10_000_000 + i) for i in range(len(batches))]
+    batches = [sharding.shard_batch(b) for b in batches]
+
+    def val_loss(params) -> float:
+        return float(np.mean([float(loss(params, b, k)) for b, k in zip(batches, keys)]))
+
+    return val_loss
 
 
 def _bar(enabled: bool, name: str, total: int, initial: int):

@@ -42,6 +42,21 @@ def test_training_pairs_exclude_self_and_are_nearest(cam):
     assert all(set(row) == set(range(len(m))) - {i} for i, row in enumerate(everyone))
 
 
+def test_training_pairs_of_a_split_come_from_the_training_demos_only(cam):
+    """With the last 10 of 30 demos held out (pool = 20), every demo's neighbours are among the first
+    20; a held-out demo's nearest is the training demo nearest to it, and the training demos' pairs
+    are those of the 20 alone."""
+    m = _motions(cam, 30)
+    m[25] = m[3]  # a held-out duplicate of training demo 3
+    pairs = retrieval.training_pairs(cam, m, 3, pool=20)
+    assert pairs.shape == (30, 3) and pairs.max() < 20
+    assert not np.any(pairs[:20] == np.arange(20)[:, None])
+    assert pairs[25, 0] == 3 and 25 not in pairs[3]
+    np.testing.assert_array_equal(pairs[:20], retrieval.training_pairs(cam, m[:20], 3))
+    with pytest.raises(ValueError, match="pool"):
+        retrieval.training_pairs(cam, m, 3, pool=1)
+
+
 def test_oracle_ranks(cam):
     db = _motions(cam, 20)
     q = db[[4, 7]] + 1e-4

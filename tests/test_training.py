@@ -129,3 +129,63 @@ def test_learning_rate_schedules(tmp_path):
     np.testing.assert_array_equal(np.asarray(resumed.params["w"]), np.asarray(full.params["w"]))
     staircase = Stage(tmp_path / "c", "toy", SPEC, {}, "fp").fit(params0(), loss_fn, sample, progress=False)
     assert not np.allclose(np.asarray(staircase.params["w"]), np.asarray(full.params["w"]))
+
+
+def test_stop_decision_waits_for_patience_and_counts_only_real_improvements():
+    import dataclasses
+
+    from readjax.training import stop_decision
+
+    spec = dataclasses.replace(SPEC, stop_patience=100, stop_min_delta=0.1)
+    assert stop_decision([(50, 1.0), (100, 0.5)], spec) is None
+    assert stop_decision([(50, 1.0), (100, 0.5), (150, 0.49)], spec) is None  # 2 % better: not real; 50 steps
+    assert stop_decision([(50, 1.0), (100, 0.5), (150, 0.44), (200, 0.43)], spec) is None  # 12 % at 150
+    stop = stop_decision([(50, 1.0), (100, 0.5), (150, 0.49), (200, 0.48)], spec)
+    assert stop["stopped_at"] == 200 and stop["best_step"] == 100 and stop["reason"] == "converged"
+    assert "10%" in stop["rule"] and "100 steps" in stop["rule"]
+    assert stop_decision([(50, 1.0), (100, 0.5), (250, 0.47)], dataclasses.replace(spec, stop_patience=0)) is None
+
+
+def test_a_stage_stops_on_its_validation_loss_records_why_and_resumes_to_the_same_end(tmp_path):
+    """The toy regression converges within ~20 steps: validation every 5 steps, patience 10 ends it
+    well before the 200-step cap; stop.json says when and why, the curve logs val_loss, fitting
+    again returns the same state at once, and a run killed before the stop ends at the same step
+    with the same parameters."""
+    import dataclasses
+
+    spec = dataclasses.replace(SPEC, steps=200, val_every=5, stop_patience=10, stop_min_delta=0.05)
+    val = [(X[i:i + 8], Y[i:i + 8]) for i in (48, 56)]
+    full = Stage(tmp_path / "a", "toy", spec, {}, "fp")
+    state = full.fit(params0(), loss_fn, sample, progress=False, val_batches=val)
+    stop = full.stop_record()
+    assert stop["reason"] == "converged" and int(state.step) == stop["stopped_at"] < 200
+    assert full.latest_step() == stop["stopped_at"]
+    logged = [r for r in full.metrics() if "val_loss" in r]
+    assert [r["step"] for r in logged] == list(range(5, stop["stopped_at"] + 1, 5))
+    assert (tmp_path / "a" / "toy" / "loss.png").exists()
+    again = full.fit(params0(), loss_fn, sample, progress=False, val_batches=val)
+    assert int(again.step) == stop["stopped_at"]
+    killed = Stage(tmp_path / "b", "toy", spec, {}, "fp")
+    killed.fit(params0(), loss_fn, sample, progress=False, val_batches=val, stop_at=10)
+    assert killed.stop_record() is None
+    resumed = Stage(tmp_path / "b", "toy", spec, {}, "fp").fit(params0(), loss_fn, sample, progress=False,
+                                                                val_batches=val)
+    assert int(resumed.step) == stop["stopped_at"]
+    np.testing.assert_array_equal(np.asarray(resumed.params["w"]), np.asarray(state.params["w"]))
+    capped = Stage(tmp_path / "c", "toy", dataclasses.replace(spec, steps=20), {}, "fp")
+    capped.fit(params0(), loss_fn, sample, progress=False, val_batches=val)
+    assert capped.stop_record()["reason"] == "step cap" and capped.stop_record()["stopped_at"] == 20
+
+
+def test_convergence_settings_are_validated():
+    from readjax.config import TrainConfig
+
+    with pytest.raises(ValueError, match="validation split"):
+        TrainConfig(stop_patience=1000)
+    with pytest.raises(ValueError, match="at least one validation"):
+        TrainConfig(val_episodes=50, stop_patience=100, val_every=250)
+    with pytest.raises(ValueError, match="stop_min_delta"):
+        TrainConfig(val_episodes=50, stop_min_delta=1.5)
+    with pytest.raises(ValueError, match="non-negative"):
+        TrainConfig(val_episodes=-1)
+    assert TrainConfig(val_episodes=50, stop_patience=500).stop_patience == 500

@@ -218,10 +218,30 @@ class TrainConfig:
     ckpt_every: int = 2000
     log_every: int = 50
     seed: int = 0
+    # The convergence rule (every stage of every method): the last ``val_episodes`` demos of the
+    # training split are held out (never the test seeds); every ``val_every`` steps the stage's
+    # loss on them is measured (fixed batches and noise), and with ``stop_patience`` > 0 a stage
+    # stops once its validation loss has not improved by more than ``stop_min_delta`` (relative)
+    # over the last ``stop_patience`` steps; ``vae_steps`` / ``steps`` are then the caps. The stage
+    # records when and why it stopped (``<stage>/stop.json``). 0 / 0: train every demo to the cap.
+    val_episodes: int = 0
+    val_every: int = 250
+    stop_patience: int = 0
+    stop_min_delta: float = 0.01
 
     def __post_init__(self):
-        for n in ("vae_steps", "vae_batch", "steps", "batch", "K", "ckpt_every", "log_every"):
+        for n in ("vae_steps", "vae_batch", "steps", "batch", "K", "ckpt_every", "log_every", "val_every"):
             if not isinstance(getattr(self, n), int) or getattr(self, n) < 1:
                 raise ValueError(f"TrainConfig.{n} must be a positive int, got {getattr(self, n)!r}")
+        for n in ("val_episodes", "stop_patience"):
+            if not isinstance(getattr(self, n), int) or getattr(self, n) < 0:
+                raise ValueError(f"TrainConfig.{n} must be a non-negative int, got {getattr(self, n)!r}")
+        if self.stop_patience and not self.val_episodes:
+            raise ValueError("TrainConfig.stop_patience needs a validation split: set train.val_episodes > 0")
+        if self.stop_patience and self.stop_patience < self.val_every:
+            raise ValueError(f"TrainConfig.stop_patience ({self.stop_patience}) must span at least one validation "
+                             f"(val_every = {self.val_every})")
+        if not 0.0 <= self.stop_min_delta < 1.0:
+            raise ValueError(f"TrainConfig.stop_min_delta must be in [0, 1), got {self.stop_min_delta!r}")
         if self.schedule not in SCHEDULES:
             raise ValueError(f"TrainConfig.schedule must be one of {', '.join(SCHEDULES)}, got {self.schedule!r}")

@@ -6,8 +6,9 @@ live with the other configs in ``readjax.config``."""
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Callable, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -88,10 +89,15 @@ def load_train_data(data_root: str | Path, task: str, train_cfg: TrainConfig, im
     return ds.resized(image_size)
 
 
+def _convergence(train: TrainConfig) -> dict:
+    return {"val_every": train.val_every, "stop_patience": train.stop_patience,
+            "stop_min_delta": train.stop_min_delta}
+
+
 def autoencoder_stage_spec(train: TrainConfig) -> StageSpec:
     """The ``vae/`` stage (READ's and READ-L's motion autoencoder): the ``train.vae_*`` settings."""
     return StageSpec(steps=train.vae_steps, batch_size=train.vae_batch, lr=train.vae_lr, schedule=train.schedule,
-                     ckpt_every=train.ckpt_every, log_every=train.log_every, seed=train.seed)
+                     ckpt_every=train.ckpt_every, log_every=train.log_every, seed=train.seed, **_convergence(train))
 
 
 def network_stage_spec(train: TrainConfig) -> StageSpec:
@@ -99,14 +105,49 @@ def network_stage_spec(train: TrainConfig) -> StageSpec:
     denoiser, Deterministic's ResNet): ``train.steps``/``batch``/``lr``..., seed ``train.seed + 1``."""
     return StageSpec(steps=train.steps, batch_size=train.batch, lr=train.lr, lr_decay=train.lr_decay,
                      lr_decay_every=train.lr_decay_every, schedule=train.schedule, ckpt_every=train.ckpt_every,
-                     log_every=train.log_every, seed=train.seed + 1)
+                     log_every=train.log_every, seed=train.seed + 1, **_convergence(train))
 
 
-def fit_stage(run_dir: Path, name: str, spec: StageSpec, config: dict, ds, params, loss_fn, batch_fn,
+def train_size(n: int, train: TrainConfig) -> int:
+    """How many of the ``n`` demos a stage trains on: all but the last ``train.val_episodes`` (the
+    held-out validation slice of the training seeds)."""
+    n_train = n - train.val_episodes
+    if n_train < 2:
+        raise ValueError(f"train.val_episodes = {train.val_episodes} leaves {n_train} of the {n} training demos "
+                         f"to train on; hold out fewer")
+    return n_train
+
+
+@dataclass(frozen=True)
+class Batches:
+    """A stage's data. ``make(idx, step)`` builds the batch of demos ``idx`` (``step`` seeds any
+    other per-batch choice, e.g. the neighbour). Training batches (``batches(step)``) draw from the
+    first ``n_train`` demos, a pure function of the step (exact resume); ``validation()`` covers the
+    held-out rest in fixed batches of the same size (None without a validation split)."""
+
+    make: Callable[[np.ndarray, int], Any]
+    n_train: int
+    n: int
+    batch_size: int
+    seed: int
+
+    def __call__(self, step: int):
+        return self.make(sample_indices(self.n_train, self.batch_size, self.seed, step), step)
+
+    def validation(self) -> list | None:
+        val = np.arange(self.n_train, self.n)
+        if not len(val):
+            return None
+        count = -(-len(val) // self.batch_size)
+        return [self.make(val[np.arange(k * self.batch_size, (k + 1) * self.batch_size) % len(val)], k)
+                for k in range(count)]
+
+
+def fit_stage(run_dir: Path, name: str, spec: StageSpec, config: dict, ds, params, loss_fn, batches: Batches,
               progress: bool, stop_at) -> None:
-    """Train (or resume) one stage of a run on the dataset ``ds``."""
-    Stage(run_dir, name, spec, config, ds.fingerprint).fit(params, loss_fn, batch_fn, progress=progress,
-                                                           stop_at=stop_at)
+    """Train (or resume) one stage of a run on the dataset ``ds`` (validating on its held-out demos)."""
+    Stage(run_dir, name, spec, config, ds.fingerprint).fit(params, loss_fn, batches, progress=progress,
+                                                           stop_at=stop_at, val_batches=batches.validation())
 
 
 def stage_params(run_dir: Path, name: str, spec: StageSpec, params_template, config: dict, fingerprint: str):
@@ -123,16 +164,16 @@ def sample_indices(n: int, batch: int, seed: int, step: int) -> np.ndarray:
     return batch_indices(n, batch, seed, step)
 
 
-def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, codes: np.ndarray | None = None, **extra):
-    """The batch function of a retrieval-conditioned stage: images and motions of sampled demos and,
-    for each, one of its K ground-truth neighbours; pure in the step (exact resume). The neighbour
-    comes as its motion (``retrieved``) or, given ``codes`` (N, D), every demo's precomputed latent
-    (a frozen autoencoder's), as its latent (``code_r``, with the sampled demos' own as ``code``):
-    a latent-space loss reads no neighbour motion. ``extra`` entries are added to every batch
-    unchanged."""
+def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, n_train: int, codes: np.ndarray | None = None,
+                 **extra) -> Batches:
+    """The batches of a retrieval-conditioned stage: images and motions of sampled demos and, for
+    each, one of its K ground-truth neighbours (``pairs``, among the first ``n_train`` demos); pure
+    in the step (exact resume). The neighbour comes as its motion (``retrieved``) or, given
+    ``codes`` (N, D), every demo's precomputed latent (a frozen autoencoder's), as its latent
+    (``code_r``, with the sampled demos' own as ``code``): a latent-space loss reads no neighbour
+    motion. ``extra`` entries are added to every batch unchanged."""
 
-    def batch(step):
-        idx = sample_indices(len(ds), spec.batch_size, spec.seed, step)
+    def batch(idx, step):
         j = neighbour_choice(pairs, idx, spec.seed, step)
         out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], **extra}
         if codes is None:
@@ -141,7 +182,7 @@ def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, codes: np.ndarray | Non
             out.update(code=codes[idx], code_r=codes[j])
         return out
 
-    return batch
+    return Batches(batch, n_train, len(ds), spec.batch_size, spec.seed)
 
 
 def neighbour_choice(pairs: np.ndarray, idx: np.ndarray, seed: int, step: int) -> np.ndarray:

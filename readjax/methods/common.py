@@ -99,9 +99,29 @@ class PreparedRun:
     def train_cfg(self):
         return self.configs["train"]
 
-    def fit(self, stage: str, spec: base.StageSpec, params, loss_fn, batch_fn, progress: bool, stop_at) -> None:
+    @property
+    def n_train(self) -> int:
+        """The demos the networks train on: the first ``n_train`` of ``ds``; the rest (``train.val_episodes``)
+        are the held-out validation slice (the retrieval database at inference still holds all)."""
+        return base.train_size(len(self.ds), self.train_cfg)
+
+    @property
+    def train_motions(self):
+        return self.ds.motion[:self.n_train]
+
+    def batches(self, spec: base.StageSpec, make) -> base.Batches:
+        """A stage's :class:`base.Batches` over this run's split from ``make(idx, step)``."""
+        return base.Batches(make, self.n_train, len(self.ds), spec.batch_size, spec.seed)
+
+    def pairs(self):
+        """Each demo's K nearest training demos (self excluded): a stage's retrieval pairs."""
+        return retrieval.training_pairs(self.ds.camera, self.ds.motion, self.train_cfg.K, clamp=True,
+                                        pool=self.n_train)
+
+    def fit(self, stage: str, spec: base.StageSpec, params, loss_fn, batches: base.Batches, progress: bool,
+            stop_at) -> None:
         """Train (or resume) one stage of this run that records the run's configs."""
-        base.fit_stage(self.run_dir, stage, spec, self.cfg_dict, self.ds, params, loss_fn, batch_fn, progress,
+        base.fit_stage(self.run_dir, stage, spec, self.cfg_dict, self.ds, params, loss_fn, batches, progress,
                        stop_at)
 
     def result(self) -> dict:
@@ -117,8 +137,8 @@ def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: s
     task = tasks.canonical_name(task)
     run_dir = Path(run_dir)
     ds = base.load_train_data(data_root, task, configs["train"], image_size)
-    if adjust is not None:
-        configs = adjust(configs, ds)
+    if adjust is not None:  # from the demos trained on, not the validation slice
+        configs = adjust(configs, ds.subset(np.arange(base.train_size(len(ds), configs["train"]))))
     cfg_dict = config.configs_to_dict(configs, sections)
     spec = {"method": method, "task": task, "preset": preset, "configs": cfg_dict,
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,

@@ -44,12 +44,11 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     if "deterministic" in stages:
         spec, ds = base.network_stage_spec(run.train_cfg), run.ds
 
-        def batch(step):
-            idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
+        def batch(idx, step):
             return {"image": ds.rgbd[idx], "motion": ds.motion[idx]}
 
         run.fit("deterministic", spec, init_model(model, jax.random.key(run.train_cfg.seed)),
-                loss(model, run.train_cfg.augment), batch, progress, stop_at)
+                loss(model, run.train_cfg.augment), run.batches(spec, batch), progress, stop_at)
     return run.result()
 
 

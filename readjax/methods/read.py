@@ -9,7 +9,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from readjax import config, retrieval, tasks
+from readjax import config, tasks
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde
 from readjax.diffusion import latent as latent_lib
@@ -95,12 +95,12 @@ def fit_autoencoder(run_dir: Path, ds, ae, key, train_cfg, cfg_dict: dict, progr
     """The ``vae/`` stage (shared by READ and READ-L, and by runs differing only in K, L, T)."""
     vspec = base.autoencoder_stage_spec(train_cfg)
 
-    def vae_batch(step):
-        idx = base.sample_indices(len(ds), vspec.batch_size, train_cfg.seed, step)
+    def vae_batch(idx, step):
         return {"motion": ds.motion[idx], "joints": ds.joints[idx]}
 
+    batches = base.Batches(vae_batch, base.train_size(len(ds), train_cfg), len(ds), vspec.batch_size, vspec.seed)
     base.fit_stage(run_dir, "vae", vspec, vae_stage_config(cfg_dict), ds, init_ae(ae, key), ae_loss(ae),
-                   vae_batch, progress, stop_at)
+                   batches, progress, stop_at)
 
 
 def autoencoder_params(run_dir: Path, ae, key, train_cfg, cfg_dict: dict, fingerprint: str):
@@ -139,13 +139,12 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     if "read" in stages:
         ds, configs, train_cfg = run.ds, run.configs, run.train_cfg
         ae_params = autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)
-        latent = fit_latent_stats(run.run_dir, ae, ae_params, ds.motion, configs["sde"])
+        latent = fit_latent_stats(run.run_dir, ae, ae_params, run.train_motions, configs["sde"])
         dspec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
         loss = read_loss(ae, ae_params, den, configs["sde"], train_cfg.augment, configs["vae"].loss_weights, latent)
         codes = latent_lib.codes(ae, ae_params, ds.motion, latent)
         run.fit("read", dspec, init_denoiser(den, run.image_size, k_den), loss,
-                base.paired_batch(ds, dspec, pairs, codes=codes), progress, stop_at)
+                base.paired_batch(ds, dspec, run.pairs(), run.n_train, codes=codes), progress, stop_at)
     return run.result()
 
 

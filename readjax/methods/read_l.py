@@ -21,7 +21,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from readjax import retrieval, tasks
+from readjax import tasks
 from readjax.config import SDEConfig
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde, taskspace
@@ -80,13 +80,12 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     if "read_l" in stages:
         ds, train_cfg, sde = run.ds, run.train_cfg, run.configs["sde"]
         ae_params = read_lib.autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)
-        latent = read_lib.fit_latent_stats(run.run_dir, ae, ae_params, ds.motion, sde)
+        latent = read_lib.fit_latent_stats(run.run_dir, ae, ae_params, run.train_motions, sde)
         spec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
         params = {"denoiser": init_latent_denoiser(lden, run.image_size, k_den), "ae": ae_params}
         codes = latent_lib.codes(ae, ae_params, ds.motion, latent)
         run.fit("read_l", spec, params, read_l_loss(ae, lden, sde, train_cfg.augment, latent),
-                base.paired_batch(ds, spec, pairs, codes=codes), progress, stop_at)
+                base.paired_batch(ds, spec, run.pairs(), run.n_train, codes=codes), progress, stop_at)
     return run.result()
 
 

@@ -24,7 +24,6 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from readjax import retrieval
 from readjax.config import SDEConfig
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde, taskspace
@@ -74,13 +73,12 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
           stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
     """Train READ-O (the ``read_o.sampler``'s target) for a task; resumes from the latest checkpoint."""
     run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size)
-    stats = common.fit_normalizer(run.run_dir, run.ds.motion)
+    stats = common.fit_normalizer(run.run_dir, run.train_motions)
     den = build_denoiser(run.configs)
     if "read_o" in stages:
         ds, train_cfg = run.ds, run.train_cfg
         spec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True)
-        batch = base.paired_batch(ds, spec, pairs, norm=common.batch_stats(stats, spec.batch_size))
+        batch = base.paired_batch(ds, spec, run.pairs(), run.n_train, norm=common.batch_stats(stats, spec.batch_size))
         run.fit("read_o", spec, init_denoiser(den, run.image_size, jax.random.key(train_cfg.seed + 1)),
                 read_o_loss(den, run.configs["sde"], train_cfg.augment), batch, progress, stop_at)
     return run.result()

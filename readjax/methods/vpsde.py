@@ -21,7 +21,6 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from readjax import retrieval
 from readjax.config import VPSDEConfig
 from readjax.data import motion as motion_lib
 from readjax.diffusion import vpsde as vp
@@ -74,23 +73,22 @@ def eps_loss(den: Denoiser, cfg: VPSDEConfig, augment: bool):
 def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: str, stages, progress, stop_at,
                 cond: bool) -> dict:
     run = common.prepare(method, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size)
-    stats = common.fit_normalizer(run.run_dir, run.ds.motion)
+    stats = common.fit_normalizer(run.run_dir, run.train_motions)
     den = build_denoiser(run.configs, cond)
     if method in stages:
         ds, train_cfg = run.ds, run.train_cfg
         spec = base.network_stage_spec(train_cfg)
-        pairs = retrieval.training_pairs(ds.camera, ds.motion, train_cfg.K, clamp=True) if cond else None
+        pairs = run.pairs() if cond else None
         norm = common.batch_stats(stats, spec.batch_size)
 
-        def batch(step):
-            idx = base.sample_indices(len(ds), spec.batch_size, spec.seed, step)
+        def batch(idx, step):
             out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], "norm": norm}
             if cond:
                 out["retrieved"] = ds.motion[base.neighbour_choice(pairs, idx, spec.seed, step)]
             return out
 
         run.fit(method, spec, init_denoiser(den, run.image_size, jax.random.key(train_cfg.seed + 1)),
-                eps_loss(den, run.configs["vpsde"], train_cfg.augment), batch, progress, stop_at)
+                eps_loss(den, run.configs["vpsde"], train_cfg.augment), run.batches(spec, batch), progress, stop_at)
     return run.result()
 
 

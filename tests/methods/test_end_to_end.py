@@ -33,6 +33,10 @@ CASES = {  # run name -> (method, extra overrides, stages)
     "read_o": ("read_o", [], ("read_o",)),
     "read_l": ("read_l", ["sde.latent_norm=true"], ("vae", "read_l")),
     "read_kinematic": ("read", ["vae.kinematic=true", "sde.latent_norm=true"], ("vae", "read")),
+    # the convergence rule: 2 of the 8 demos held out, validated every 2 steps; no 90 % gain within 2
+    # steps ends both stages at step 4 of their 6-step cap
+    "read_converged": ("read", ["steps=6", "vae_steps=6", "val_episodes=2", "val_every=2", "stop_patience=2",
+                                "stop_min_delta=0.9", "sde.latent_norm=true"], ("vae", "read")),
 }
 
 
@@ -57,6 +61,10 @@ def test_train_and_plan(data, name):
     for stage in stages:
         rows = [json.loads(ln) for ln in (run_dir / stage / "metrics.jsonl").read_text().splitlines()]
         assert rows[-1]["step"] == 4 and np.isfinite(rows[-1]["loss"])
+        if name == "read_converged":
+            stop = json.loads((run_dir / stage / "stop.json").read_text())
+            assert stop["reason"] == "converged" and stop["stopped_at"] == 4
+            assert [r["step"] for r in rows if "val_loss" in r] == [2, 4]
     if method in ("read", "read_l"):  # their SDE runs on the standardised latent (sde.latent_norm)
         assert spec["configs"]["sde"]["latent_norm"]
         stats = json.loads((run_dir / "latent_stats.json").read_text())
