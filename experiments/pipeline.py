@@ -44,6 +44,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--gen-batch", type=_cli.positive_int, default=32, help="episodes simulated together")
     p.add_argument("--read-N", type=int, nargs="+", default=[0, 100], help="READ's refinement steps to evaluate")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override for training")
+    p.add_argument("--run-name", action="append", default=[], metavar="METHOD=NAME",
+                   help="the run folder of a method on every task (default: the method's name), e.g. "
+                        "read=read_v3_5k to keep a recipe's runs apart from older ones")
     p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
     p.add_argument("--dry-run", action="store_true", help="list the steps and whether each is done; run nothing")
     return p
@@ -61,11 +64,14 @@ def main(argv=None) -> int:
     if any(n < 0 for n in args.read_N):
         raise ValueError(f"--read-N values must be >= 0, got {args.read_N}")
     names = tasks.names() if args.tasks == ["all"] else tuple(args.tasks)
+    if any("=" not in r for r in args.run_name):
+        raise ValueError(f"--run-name must look like METHOD=NAME, got {args.run_name}")
+    run_names = tuple(tuple(r.split("=", 1)) for r in args.run_name)
     cfg = pipeline.PipelineConfig(
         tasks=names, methods=tuple(args.methods), preset=args.preset, data=args.data, runs=args.runs,
         results=args.results, train_episodes=args.train_episodes, test_episodes=args.test_episodes,
         image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
-        overrides=tuple(args.set), shard=shard).validate()
+        overrides=tuple(args.set), shard=shard, run_names=run_names).validate()
     steps = pipeline.plan_steps(cfg)
     if args.dry_run:
         for s in steps:

@@ -41,6 +41,7 @@ class PipelineConfig:
     read_N: tuple[int, ...] = (0, 100)
     overrides: tuple[str, ...] = ()  # --set for every training
     shard: tuple[int, int] = (0, 1)  # (index, count): this process runs tasks[index::count]
+    run_names: tuple[tuple[str, str], ...] = ()  # (method, run name); a method not named: its own name
 
     def validate(self) -> "PipelineConfig":
         names = tuple(tasks.canonical_name(t) for t in self.tasks)
@@ -49,7 +50,16 @@ class PipelineConfig:
             raise ValueError(f"--shard must be i/n with 0 <= i < n, got {i}/{n}")
         for m in self.methods:
             methods.module(m)
+        for m, name in self.run_names:
+            if m not in self.methods:
+                raise ValueError(f"--run-name names method {m!r}, which is not among --methods {' '.join(self.methods)}")
+            if not name or "/" in name:
+                raise ValueError(f"--run-name {m}={name!r}: a run name is one folder name")
         return PipelineConfig(**{**self.__dict__, "tasks": names})
+
+    def run_name(self, method: str) -> str:
+        """The run folder of ``method`` on each task (``--run-name``; default the method's name)."""
+        return dict(self.run_names).get(method, method)
 
 
 @dataclass
@@ -93,12 +103,12 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                     python, "-m", "experiments.verify", "--task", task, "--data", str(data), "--out", str(out),
                     "--min", "100"], done=lambda out=out, c=count: _verified(out, c)))
         for method in cfg.methods:
-            run = runs / task / method
+            run = runs / task / cfg.run_name(method)
             marker = run / "pipeline_trained.json"
             sets = sum((["--set", s] for s in cfg.overrides), [])
             steps.append(Step("train", task, f"train {method}", [
-                python, "-m", "experiments.train", "--task", task, "--model", method, "--preset", cfg.preset,
-                "--data", str(data), "--out", str(runs), "--quiet"] + sets, done=marker.exists,
+                python, "-m", "experiments.train", "--task", task, "--model", method, "--name", run.name,
+                "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"] + sets, done=marker.exists,
                 after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()}))))
             for extra in eval_args(method, cfg.read_N):
                 argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", str(data),

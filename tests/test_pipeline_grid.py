@@ -37,7 +37,7 @@ class FakeRunner:
             Path(arg("--out")).parent.mkdir(parents=True, exist_ok=True)
             Path(arg("--out")).write_text(json.dumps({"episodes": 4, "success_rate": self.verify_rate}))
         elif mod == "train":
-            (Path(arg("--out")) / arg("--task") / arg("--model")).mkdir(parents=True, exist_ok=True)
+            (Path(arg("--out")) / arg("--task") / arg("--name")).mkdir(parents=True, exist_ok=True)
         elif mod == "evaluate":
             ev = Path(arg("--run")) / "eval"
             ev.mkdir(parents=True, exist_ok=True)
@@ -63,6 +63,20 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert again.calls == []
 
 
+def test_run_names_keep_a_recipe_apart(tmp_path):
+    cfg = _cfg(tmp_path, tasks=("RT",), run_names=(("read", "read_v3_5k"),))
+    steps = pipeline.plan_steps(cfg)
+    train = [s for s in steps if s.kind == "train"]
+    assert [s.argv[s.argv.index("--name") + 1] for s in train] == ["read_v3_5k", "deterministic"]
+    pipeline.run_steps(steps, log=lambda m: None, runner=FakeRunner())
+    assert (tmp_path / "results" / "reach_target" / "read_v3_5k" / "eval" / "spe_N100.json").exists()
+    assert (tmp_path / "runs" / "reach_target" / "read_v3_5k" / "pipeline_trained.json").exists()
+    with pytest.raises(ValueError, match="not among --methods"):
+        _cfg(tmp_path, run_names=(("vpsde", "v"),))
+    with pytest.raises(ValueError, match="one folder name"):
+        _cfg(tmp_path, run_names=(("read", "a/b"),))
+
+
 def test_a_failed_replay_stops_before_training(tmp_path):
     runner = FakeRunner(verify_rate=0.97)
     with pytest.raises(pipeline.PipelineError, match="100 %"):
@@ -82,4 +96,6 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     assert "todo  reach_target: generate test 100" in capsys.readouterr().out
     assert _cli.run(pipeline_cli.main, argv + ["--shard", "2/2"]) == 2
     assert "--shard" in capsys.readouterr().err
+    assert _cli.run(pipeline_cli.main, argv + ["--run-name", "read"]) == 2
+    assert "METHOD=NAME" in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, ["--tasks", "XX", "--dry-run"]) == 2
