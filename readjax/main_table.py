@@ -148,6 +148,30 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
         cells = [paired(read, other[task]) if task in other else "–" for other in (rows[RETRIEVAL_ROW], rows[DET_ROW])]
         out.append(f"| {code} | " + " | ".join(cells) + " |")
     out.append("")
+    out += training_lines({labels[k]: v for k, v in rows.items()})
     if notes:
         out += ["Cells more than one evaluation could fill:", ""] + [f"- {n}" for n in notes] + [""]
     return out
+
+
+def training_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
+    """How long each row's models trained and why they stopped (the results' ``training`` record):
+    per stage the step counts and reasons over the row's tasks, e.g. ``read 5000 (step cap) x 4``."""
+    out = ["How the rows' models trained (per stage: steps, why it stopped, on how many tasks):", ""]
+    for label, by_task in rows.items():
+        counts: dict[str, int] = {}
+        missing = 0
+        for r in by_task.values():
+            if not r.get("training"):
+                missing += 1
+                continue
+            for stage, rec in r["training"].items():
+                why = (rec.get("stop") or {}).get("reason", "unfinished")
+                key = f"{stage} {rec['steps']} ({why})"
+                counts[key] = counts.get(key, 0) + 1
+        parts = [f"{k} x {n}" for k, n in sorted(counts.items())]
+        if missing:
+            parts.append(f"not recorded x {missing}")
+        if parts:
+            out.append(f"- {label}: " + "; ".join(parts))
+    return out + [""]

@@ -314,6 +314,20 @@ class Stage:
         return out
 
 
+def stage_records(run_dir: str | Path) -> dict[str, dict]:
+    """Per stage of a run folder (each ``<stage>/stage.json``): the last logged step and, once the
+    stage finished, why (``stop.json``: converged or the step cap; None before it finished or for a
+    stage trained before the record existed). Evaluations carry it, so a result says how long its
+    model trained and whether it had converged."""
+    out = {}
+    for f in sorted(Path(run_dir).glob("*/stage.json")):
+        metrics, stop = f.parent / "metrics.jsonl", f.parent / "stop.json"
+        rows = [ln for ln in metrics.read_text().splitlines() if ln.strip()] if metrics.exists() else []
+        out[f.parent.name] = {"steps": json.loads(rows[-1])["step"] if rows else 0,
+                              "stop": json.loads(stop.read_text()) if stop.exists() else None}
+    return out
+
+
 def make_val_loss(loss_fn: Callable, batches: list, seed: int) -> Callable[[Any], float]:
     """params -> mean loss over the fixed validation ``batches``, each with its own fixed key (the
     same noise at every validation, so the curve moves with the parameters only)."""

@@ -43,6 +43,9 @@ def test_main_table_picks_the_preset_refinement_and_pairs_rows(tmp_path, capsys)
     _write(runs, "reach_target", "det_a", "direct", [False] * 2 + [True] * 5 + [False] * 3, method="deterministic",
            N=None)
     _write(runs, "push_button", "read_a", "spe_N100_now", ten)
+    f = runs / "push_button" / "read_a" / "eval" / "spe_N100_now.json"
+    f.write_text(json.dumps(dict(json.loads(f.read_text()), training={
+        "vae": {"steps": 3000, "stop": {"reason": "step cap"}}, "read": {"steps": 2250, "stop": {"reason": "converged"}}})))
     out = tmp_path / "docs" / "results.md"
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det_a"]) == 0
     text = out.read_text()
@@ -58,6 +61,7 @@ def test_main_table_picks_the_preset_refinement_and_pairs_rows(tmp_path, capsys)
     # RT: episodes 3-8 solved only at N = 100 (p = 2 / 2^6); 0, 1, 7, 8 only by READ against Deterministic
     assert "| RT | +6 / -0, p=0.031 | +4 / -0, p=0.12 |" in section
     assert "| PB | – | – |" in section
+    assert "- READ (N=100): `read_a`: read 2250 (converged) x 1; vae 3000 (step cap) x 1; not recorded x 1" in section
     assert out.with_name("results_main.png").exists() and "![main table](results_main.png)" in section
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "nope", "nada"]) == 2
     assert "no evaluation of run 'nope'" in capsys.readouterr().err

@@ -154,6 +154,9 @@ def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
     assert result["test_fingerprint"] == test.fingerprint
     assert result["train_fingerprint"] == json.loads((run_dir / "run.json").read_text())["dataset_fingerprint"]
     assert result["commit"] == provenance.commit() != ""
+    # how long each stage trained and why it stopped (the tiny run: at its step caps)
+    assert {k: (v["steps"], v["stop"]["reason"]) for k, v in result["training"].items()} == {
+        "vae": (6, "step cap"), "read": (4, "step cap")}
     # RT has landmarks: every plan's end point is classified (target or distractor)
     assert len(result["end_points"]["nearest_landmark"]) == 4
     assert set(result["end_points"]["nearest_landmark"]) <= {"target", "distractor"}
