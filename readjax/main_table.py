@@ -14,17 +14,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from readjax import paper, tasks
 from readjax.config import preset
-from readjax.report import _EVAL_DEFAULTS, bar_chart, mcnemar_p, protocol, with_defaults
+from readjax.report import bar_chart, eval_config_of, mcnemar_p, paired_outcomes, protocol, with_defaults
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
-
-
-def _eval_config(r: dict) -> dict:
-    return {**_EVAL_DEFAULTS, **(r.get("eval_config") or {})}
 
 
 def refinement_of(preset_name: str) -> tuple[str, int]:
@@ -37,7 +31,7 @@ def is_read_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
     """Whether ``r`` is a clean-image SPE top-1 evaluation at N = ``n`` with one candidate and, for
     n > 0, the refinement ``(update, rounds)`` (an evaluation that predates a field ran with that
     field's old default, which its run's configs then also hold)."""
-    cfg = _eval_config(r)
+    cfg = eval_config_of(r)
     if protocol(r) != "main" or cfg["retrieval"] != "spe" or cfg["rank"] != 1 or cfg["candidates"] != 1:
         return False
     if cfg["N"] != n:
@@ -98,12 +92,10 @@ def _with_averages(table: dict[str, float], measured: list[str]) -> dict[str, fl
 
 def paired(a: dict, b: dict) -> str:
     """``+wins / -losses, p=...`` of result ``a`` against ``b`` on the episodes both ran."""
-    x = dict(zip(a.get("seeds", []), a.get("success", [])))
-    y = dict(zip(b.get("seeds", []), b.get("success", [])))
-    common = sorted(set(x) & set(y))
-    if not common:
+    pair = paired_outcomes(a, b)
+    if pair is None:
         return "no common episodes"
-    u, v = np.asarray([x[k] for k in common], bool), np.asarray([y[k] for k in common], bool)
+    u, v = pair
     return f"+{int((u & ~v).sum())} / -{int((~u & v).sum())}, p={mcnemar_p(u, v):.2g}"
 
 

@@ -183,6 +183,16 @@ def _by_seed(r: dict) -> dict[int, bool]:
     return dict(zip(r.get("seeds", []), r.get("success", [])))
 
 
+def paired_outcomes(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray] | None:
+    """Two results' successes (bool arrays) on the episodes both ran, matched by seed; None when
+    they share no episode."""
+    x, y = _by_seed(a), _by_seed(b)
+    common = sorted(set(x) & set(y))
+    if not common:
+        return None
+    return np.asarray([x[k] for k in common], bool), np.asarray([y[k] for k in common], bool)
+
+
 def paired_comparison(results: list[dict], reference: str) -> dict[str, dict[str, str]]:
     """Each row against the ``reference`` row (a label of the tables) on the episodes both ran:
     the difference in success points and the exact McNemar p-value, per task. With 100 episodes a
@@ -199,11 +209,10 @@ def paired_comparison(results: list[dict], reference: str) -> dict[str, dict[str
         for task, r in rows[label].items():
             if task not in ref:
                 continue
-            x, y = _by_seed(r), _by_seed(ref[task])
-            common = sorted(set(x) & set(y))
-            if not common:
+            pair = paired_outcomes(r, ref[task])
+            if pair is None:
                 continue
-            a, b = [x[k] for k in common], [y[k] for k in common]
+            a, b = pair
             diff = 100.0 * (np.mean(a) - np.mean(b))
             cells[tasks.code_of(task)] = f"{diff:+.0f} (p={mcnemar_p(a, b):.2g})"
         if cells:
@@ -239,6 +248,11 @@ def with_defaults(configs: dict) -> dict:
 _EVAL_DEFAULTS = {**{f.name: f.default for f in dataclasses.fields(EvalConfig)}, "rounds": 1}
 
 
+def eval_config_of(r: dict) -> dict:
+    """The evaluation settings a result ran with, fields it predates at what they then were."""
+    return {**_EVAL_DEFAULTS, **(r.get("eval_config") or {})}
+
+
 def training_group(r: dict) -> str | None:
     """What a result measures apart from which training produced it: the task, the method, every
     config except ``train.seed``, the training set (its fingerprint, where recorded: the same
@@ -251,7 +265,7 @@ def training_group(r: dict) -> str | None:
     configs = with_defaults(configs)
     configs["train"] = {k: v for k, v in configs.get("train", {}).items() if k != "seed"}
     # an evaluation recorded before an EvalConfig field existed ran with its default
-    eval_config = {**_EVAL_DEFAULTS, **(r.get("eval_config") or {})}
+    eval_config = eval_config_of(r)
     return json.dumps([r["task"], r.get("method"), configs, r.get("train_fingerprint"), r.get("name"),
                        eval_config], sort_keys=True)
 

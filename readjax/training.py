@@ -223,7 +223,8 @@ class Stage:
         if self.latest_step() is not None:
             state = self.restore(state)
         start = int(state.step)
-        if self.stop_record() is not None and self.stop_record()["stopped_at"] == start:
+        finished = self.stop_record()
+        if finished is not None and finished["stopped_at"] == start:
             return state  # finished before (converged or at the cap)
         self._truncate_metrics(start)
         history = [(r["step"], r["val_loss"]) for r in self.metrics() if "val_loss" in r]

@@ -137,8 +137,9 @@ def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: s
     task = tasks.canonical_name(task)
     run_dir = Path(run_dir)
     ds = base.load_train_data(data_root, task, configs["train"], image_size)
-    if adjust is not None:  # from the demos trained on, not the validation slice
-        configs = adjust(configs, ds.subset(np.arange(base.train_size(len(ds), configs["train"]))))
+    if adjust is not None:  # from the demos trained on, not the validation slice (no copy without one)
+        n_train = base.train_size(len(ds), configs["train"])
+        configs = adjust(configs, ds if n_train == len(ds) else ds.subset(np.arange(n_train)))
     cfg_dict = config.configs_to_dict(configs, sections)
     spec = {"method": method, "task": task, "preset": preset, "configs": cfg_dict,
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
