@@ -48,6 +48,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--batch-size", type=_cli.positive_int, default=50)
     p.add_argument("--videos", type=int, default=4, help="rollouts rendered to the MP4 (0: none)")
     p.add_argument("--name", default=None, help="result name (default from the options)")
+    p.add_argument("--out", default=None, help="folder for the JSON, overlay and video (default: RUN/eval, which "
+                                               "experiments.report reads; another folder keeps e.g. a few "
+                                               "episodes rendered for show out of the tables)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quiet", action="store_true")
     return p
@@ -116,12 +119,12 @@ def main(argv=None) -> None:
         model.set_refine_update(args.refine)
     name = args.name or default_name(args, model.uses_retrieval, model.iterative, planner.n_steps,
                                      evaluation.refine_update(model), planner.default_rounds)
-    result = evaluation.evaluate(planner, test_ds, cfg, out_dir=Path(args.run) / "eval", name=name,
-                                 progress=not args.quiet)
+    out = Path(args.out) if args.out else Path(args.run) / "eval"
+    result = evaluation.evaluate(planner, test_ds, cfg, out_dir=out, name=name, progress=not args.quiet)
     label = f"{result['method']} ({name})"
     print(tables.format_table({label: result["table"]}))
     print(f"success {100 * result['success_rate']:.1f}% over {result['episodes']} episodes; "
-          f"results in {Path(args.run) / 'eval' / (name + '.json')}")
+          f"results in {out / (name + '.json')}")
 
 
 if __name__ == "__main__":

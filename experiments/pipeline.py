@@ -7,7 +7,9 @@ For each task (in the paper's order), each step runs only if its output is missi
   3. train each method (--preset), then evaluate it on the test split: READ at each --read-N,
      the others once;
   4. copy the evaluation JSONs to RESULTS/<task>/<method>/eval/ (commit them; build tables with
-     `python -m experiments.report --runs results/`).
+     `python -m experiments.report --runs results/`);
+  5. render READ's first --media-episodes test episodes at its largest N (motion overlay + rollout
+     video, RESULTS/<task>/<run>/media/), checking their outcomes equal the full evaluation's.
 Progress and an ETA cover the whole grid. A kill loses at most the step in progress; running the
 same command again skips what is done. --shard i/n runs every n-th task from the i-th, so n
 processes (or machines sharing the folders) split the grid.
@@ -47,6 +49,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--run-name", action="append", default=[], metavar="METHOD=NAME",
                    help="the run folder of a method on every task (default: the method's name), e.g. "
                         "read=read_v3_5k to keep a recipe's runs apart from older ones")
+    p.add_argument("--media-episodes", type=int, default=8,
+                   help="READ's first k test episodes rendered at its largest --read-N: a motion overlay and a "
+                        "rollout video in RESULTS/<task>/<run>/media/ (0: none)")
     p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
     p.add_argument("--dry-run", action="store_true", help="list the steps and whether each is done; run nothing")
     return p
@@ -71,7 +76,8 @@ def main(argv=None) -> int:
         tasks=names, methods=tuple(args.methods), preset=args.preset, data=args.data, runs=args.runs,
         results=args.results, train_episodes=args.train_episodes, test_episodes=args.test_episodes,
         image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
-        overrides=tuple(args.set), shard=shard, run_names=run_names).validate()
+        overrides=tuple(args.set), shard=shard, run_names=run_names,
+        media_episodes=args.media_episodes).validate()
     steps = pipeline.plan_steps(cfg)
     if args.dry_run:
         for s in steps:

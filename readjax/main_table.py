@@ -12,6 +12,7 @@ setting of the same run never fills it by accident.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from readjax import paper, tasks
@@ -141,6 +142,7 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
         out.append(f"| {code} | " + " | ".join(cells) + " |")
     out.append("")
     out += training_lines({labels[k]: v for k, v in rows.items()})
+    out += media_lines(rows[READ_ROW], chart.parent if chart is not None else None)
     if notes:
         out += ["Cells more than one evaluation could fill:", ""] + [f"- {n}" for n in notes] + [""]
     return out
@@ -167,3 +169,31 @@ def training_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
         if parts:
             out.append(f"- {label}: " + "; ".join(parts))
     return out + [""]
+
+
+def media_lines(read_cells: dict[str, dict], doc_dir: Path | None) -> list[str]:
+    """READ's rendered episodes per task, where the pipeline made them: the first test episodes of
+    the evaluation that fills the READ cell, rendered again under the same name in the run's
+    ``media/`` folder beside ``eval/`` (motion overlay, linked rollout video). Paths are relative to
+    ``doc_dir``, the folder of the report that shows them."""
+    out = []
+    for code in tasks.AVG16:
+        r = read_cells.get(tasks.canonical_name(code))
+        if r is None:
+            continue
+        media = Path(r["_file"]).parent.parent / "media"
+        overlay, video = media / f"{r['name']}_overlay.png", media / f"{r['name']}_rollouts.mp4"
+        if not overlay.exists():
+            continue
+        link = lambda f: Path(os.path.relpath(f.resolve(), doc_dir.resolve())).as_posix() if doc_dir else f.as_posix()  # noqa: E731
+        ok = r["success"][:8]
+        head = f"**{code}** ({tasks.canonical_name(code)}): the first {len(ok)} test episodes, {sum(ok)} succeeded"
+        out += [head + (f"; [rollout video]({link(video)})" if video.exists() else "") + ".", "",
+                f"![{code}: retrieved, planned and ground-truth motions]({link(overlay)})", ""]
+    if out:
+        out = ["### READ's plans and rollouts per task", "",
+               "Each overlay shows a task's first test images with the retrieved (yellow), planned (blue) "
+               "and ground-truth (green) paths of the end effector, a dot where the gripper is closed; the "
+               "video executes the first four plans. Outcomes as in the table.", ""] + out
+    return out
+

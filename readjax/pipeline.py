@@ -6,11 +6,17 @@ is finished and a kill loses at most the step in progress (the commands resume t
 A test split must replay its ground truth at 100 % before anything is trained on its task: a
 number from a split that does not is not a result. Finished evaluations are copied to
 ``results/<task>/<run>/eval/<name>.json``, which ``experiments.report --runs results/`` reads.
+READ's first few test episodes at its largest N are evaluated once more, apart, to render them: the
+overlay of retrieved / planned / ground-truth motions and a rollout video go to
+``results/<task>/<run>/media/`` (the report shows them); their outcomes must equal the 100-episode
+evaluation's on the same seeds, since an episode's result may not depend on its batch.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import platform
 import shutil
 import subprocess
 import sys
@@ -42,12 +48,15 @@ class PipelineConfig:
     overrides: tuple[str, ...] = ()  # --set for every training
     shard: tuple[int, int] = (0, 1)  # (index, count): this process runs tasks[index::count]
     run_names: tuple[tuple[str, str], ...] = ()  # (method, run name); a method not named: its own name
+    media_episodes: int = 8  # READ's first k test episodes (at most all) rendered: overlay + video; 0: none
 
     def validate(self) -> "PipelineConfig":
         names = tuple(tasks.canonical_name(t) for t in self.tasks)
         i, n = self.shard
         if not (n >= 1 and 0 <= i < n):
             raise ValueError(f"--shard must be i/n with 0 <= i < n, got {i}/{n}")
+        if self.media_episodes < 0:
+            raise ValueError(f"--media-episodes must be >= 0, got {self.media_episodes}")
         for m in self.methods:
             methods.module(m)
         for m, name in self.run_names:
@@ -64,12 +73,13 @@ class PipelineConfig:
 
 @dataclass
 class Step:
-    kind: str  # generate / verify / train / evaluate
+    kind: str  # generate / verify / train / evaluate / media
     task: str
     label: str
     argv: list[str]
     done: Callable[[], bool]
     after: Callable[[], None] = field(default=lambda: None)
+    timing: Path | None = None  # the task's pipeline_timing.json, where its wall clock is recorded
 
 
 def _summary_kept(split_dir: Path) -> int:
@@ -121,7 +131,76 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
 
                 steps.append(Step("evaluate", task, f"evaluate {method} {' '.join(extra) or ''}".strip(), argv,
                                   done=lambda run=run, entry=entry: entry in _ledger(run), after=record))
+            if method == "read" and cfg.media_episodes and max(cfg.read_N) > 0:
+                steps.append(media_step(cfg, task, run, python))
+    for s in steps:
+        s.timing = results / s.task / TIMING_FILE
     return steps
+
+
+TIMING_FILE = "pipeline_timing.json"
+
+
+def record_timing(step: Step, seconds: float, load: float | None) -> None:
+    """Add a finished step's wall clock to its task's ``pipeline_timing.json`` (committed beside the
+    results, read by ``experiments.report``): seconds, when, and the machine's core count and load
+    average when it started (2-core timings beside another job are not idle-machine timings)."""
+    if step.timing is None:
+        return
+    f = step.timing
+    record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
+    record["steps"][step.label] = {"kind": step.kind, "seconds": round(seconds, 1),
+                                   "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "cpus": os.cpu_count(),
+                                   "load_at_start": load, "platform": platform.platform()}
+    f.parent.mkdir(parents=True, exist_ok=True)
+    f.write_text(json.dumps(record, indent=2))
+
+
+def _load() -> float | None:
+    try:
+        return round(os.getloadavg()[0], 2)
+    except OSError:  # not on every platform
+        return None
+
+
+MEDIA_VIDEOS = 4  # rollouts side by side in a task's video
+
+
+def media_step(cfg: PipelineConfig, task: str, run: Path, python: str) -> Step:
+    """Render READ's first ``media_episodes`` test episodes at its largest N: an evaluation of those
+    episodes alone, written to RUN/media/ (outside RUN/eval/, so no table counts it), then copied
+    to results/<task>/<run>/media/ with its outcomes checked against the full evaluation's."""
+    n = max(cfg.read_N)
+    k = min(cfg.media_episodes, cfg.test_episodes)
+    media, dest = run / "media", Path(cfg.results) / task / run.name / "media"
+    argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", cfg.data, "--episodes", str(k),
+            "--batch-size", str(k), "--videos", str(min(MEDIA_VIDEOS, k)), "--N", str(n), "--out", str(media),
+            "--quiet"]
+
+    def publish():
+        check_media(media, run / "eval")
+        dest.mkdir(parents=True, exist_ok=True)
+        for f in sorted(media.glob("*_overlay.png")) + sorted(media.glob("*_rollouts.mp4")):
+            shutil.copyfile(f, dest / f.name)
+
+    return Step("media", task, f"render READ N={n} ({k} episodes: overlay + video)", argv,
+                done=lambda: any(dest.glob("*_rollouts.mp4")), after=publish)
+
+
+def check_media(media: Path, eval_dir: Path) -> None:
+    """The rendered episodes' outcomes equal those of the evaluation of the same name on the same
+    seeds: a video that shows other outcomes than the table would mislead."""
+    for f in sorted(media.glob("*.json")):
+        shown = json.loads(f.read_text())
+        full_file = eval_dir / f.name
+        if "seeds" not in shown or not full_file.exists():
+            continue
+        full = json.loads(full_file.read_text())
+        by_seed = dict(zip(full.get("seeds", []), full.get("success", [])))
+        differ = [s for s, ok in zip(shown["seeds"], shown["success"]) if s in by_seed and by_seed[s] != ok]
+        if differ:
+            raise PipelineError(f"{f.name}: seeds {differ} succeed in one evaluation and fail in the other "
+                                f"({media} against {eval_dir}): an episode's outcome depends on its batch")
 
 
 def _verified(path: Path, count: int) -> bool:
@@ -152,17 +231,18 @@ def copy_results(run: Path, results: Path) -> None:
 
 def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subprocess.run) -> dict:
     """Run the steps not yet done, in order; returns {"ran": k, "skipped": s, "seconds": {...}}.
-    Progress and an ETA (from the mean time of finished steps of the same kind) go to ``log``."""
+    Progress and an ETA (:func:`_eta`) go to ``log``."""
     todo = [s for s in steps if not s.done()]
     skipped = len(steps) - len(todo)
     log(f"pipeline: {len(steps)} steps, {skipped} already done, {len(todo)} to run")
-    took: dict[str, list[float]] = {}
+    by_kind: dict[str, list[float]] = {}  # seconds of finished steps, by kind and by label
+    by_label: dict[str, list[float]] = {}
     t_start = time.time()
     for k, step in enumerate(todo, 1):
-        eta = _eta(todo[k - 1:], took)
+        eta = _eta(todo[k - 1:], by_label, by_kind)
         log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
             f"{', ETA ' + _hms(eta) if eta is not None else ''})")
-        t0 = time.time()
+        t0, load = time.time(), _load()
         proc = runner(step.argv)
         if proc.returncode != 0:
             raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
@@ -171,15 +251,22 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
         if not step.done():
             raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
                                 f"ground truth did not replay at 100 %)")
-        took.setdefault(step.kind, []).append(time.time() - t0)
-    return {"ran": len(todo), "skipped": skipped, "seconds": {k: sum(v) for k, v in took.items()}}
+        by_kind.setdefault(step.kind, []).append(time.time() - t0)
+        by_label.setdefault(step.label, []).append(time.time() - t0)
+        record_timing(step, time.time() - t0, load)
+    return {"ran": len(todo), "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
 
 
-def _eta(remaining: list[Step], took: dict[str, list[float]]) -> float | None:
-    if not took:
+def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[str, list[float]]) -> float | None:
+    """Seconds left: each remaining step at the mean time of finished steps with its label (the same
+    step on another task: "train read", "evaluate read --N 100"), else of its kind, else of all
+    steps; so a 35-minute READ training does not price a 7-minute regressor's."""
+    if not by_kind:
         return None
-    mean_all = sum(map(sum, took.values())) / sum(map(len, took.values()))
-    return sum((sum(took[s.kind]) / len(took[s.kind])) if s.kind in took else mean_all for s in remaining)
+    mean = lambda v: sum(v) / len(v)  # noqa: E731
+    mean_all = sum(map(sum, by_kind.values())) / sum(map(len, by_kind.values()))
+    return sum(mean(by_label[s.label]) if s.label in by_label else mean(by_kind[s.kind]) if s.kind in by_kind
+               else mean_all for s in remaining)
 
 
 def _hms(seconds: float) -> str:

@@ -151,6 +151,52 @@ def stacks(results: list[dict]) -> tuple[dict[str, str], list[str], dict[tuple, 
     return common, differing, groups
 
 
+def cost_lines(runs_root: str | Path) -> list[str]:
+    """The pipeline's wall clock per task (``<task>/pipeline_timing.json``, written by
+    ``experiments.pipeline``): minutes per step group and in all, with the machine's load when the
+    steps started (timings beside another job are not idle-machine timings)."""
+    records = {}
+    for f in sorted(Path(runs_root).glob("*/pipeline_timing.json")):
+        try:
+            record = json.loads(f.read_text())
+            records[record["task"]] = record["steps"]
+        except (json.JSONDecodeError, KeyError):
+            continue
+    if not records:
+        return []
+
+    def column(label: str, kind: str) -> str:  # one column per training, the rest summed by kind
+        return label if kind == "train" else kind
+
+    cols = list(dict.fromkeys(column(lb, st["kind"]) for steps in records.values() for lb, st in steps.items()))
+    order = ["generate", "verify"] + sorted(c for c in cols if c.startswith("train")) + ["evaluate", "media"]
+    cols = [c for c in order if c in cols] + [c for c in cols if c not in order]
+    order_of = {name: i for i, name in enumerate(tasks.names())}
+    lines = ["## Pipeline wall clock per task", "",
+             "Minutes per step as `experiments.pipeline` ran it (generate: test and training splits; "
+             "evaluate: every evaluation of every method). Load: the 1-minute load average when the "
+             "task's steps started, min-max.", "",
+             "| task | " + " | ".join(cols) + " | total | cores | load |", "|---" * (len(cols) + 4) + "|"]
+    totals = dict.fromkeys(cols + ["total"], 0.0)
+    for task in sorted(records, key=lambda t: order_of.get(t, len(order_of))):
+        steps = records[task]
+        mins = dict.fromkeys(cols, 0.0)
+        for lb, st in steps.items():
+            mins[column(lb, st["kind"])] += st["seconds"] / 60
+        total = sum(mins.values())
+        for c in cols:
+            totals[c] += mins[c]
+        totals["total"] += total
+        loads = [st["load_at_start"] for st in steps.values() if st.get("load_at_start") is not None]
+        cores = sorted({str(st.get("cpus")) for st in steps.values()})
+        load = f"{min(loads):.1f}-{max(loads):.1f}" if loads else "–"
+        lines.append(f"| {tasks.code_of(task)} | " + " | ".join(f"{mins[c]:.1f}" for c in cols)
+                     + f" | {total:.1f} | {','.join(cores)} | {load} |")
+    lines.append(f"| all {len(records)} | " + " | ".join(f"{totals[c]:.1f}" for c in cols)
+                 + f" | {totals['total']:.1f} | | |")
+    return lines + [""]
+
+
 def provenance_lines(results: list[dict]) -> list[str]:
     common, differing, groups = stacks(results)
     lines = ["## Provenance", "", "| package | version |", "|---|---|"]
@@ -381,6 +427,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     for sw in sweeps(runs_root):
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]
+    lines += cost_lines(runs_root)
     lines += provenance_lines(results)
     lines += ["", "| task | test seeds | episodes |", "|---|---|---|"]
     lines += [f"| {t} | {a}..{b} | {n} |" for t, a, b, n in seeds]

@@ -76,3 +76,24 @@ def test_a_second_qualifying_evaluation_is_noted_not_mixed(tmp_path):
     section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
     assert "| READ (N=100): `read_a` | – | 100.0 |" in section
     assert "b_second.json` also qualifies" in section
+
+
+def test_reads_rendered_episodes_are_shown_for_the_cell_they_belong_to(tmp_path):
+    """A task's overlay and video (the pipeline's media/ beside eval/) appear under the table, linked
+    relative to the report, only for the evaluation that fills the READ cell."""
+    runs = tmp_path / "results"
+    _write(runs, "reach_target", "read_a", "spe_N100_now", [True, False, True])
+    _write(runs, "push_button", "read_a", "spe_N100_now", [True] * 3)
+    media = runs / "reach_target" / "read_a" / "media"
+    media.mkdir()
+    (media / "spe_N100_now_overlay.png").write_bytes(b"png")
+    (media / "spe_N100_now_rollouts.mp4").write_bytes(b"mp4")
+    (media / "other_overlay.png").write_bytes(b"png")  # another evaluation's: not shown
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
+    section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
+    assert "### READ's plans and rollouts per task" in section
+    assert ("**RT** (reach_target): the first 3 test episodes, 2 succeeded; "
+            "[rollout video](../results/reach_target/read_a/media/spe_N100_now_rollouts.mp4).") in section
+    assert "(../results/reach_target/read_a/media/spe_N100_now_overlay.png)" in section
+    assert "**PB**" not in section and "other_overlay" not in section

@@ -128,17 +128,20 @@ def test_train_writes_checkpoints_metrics_and_plots(run):
     assert (run_dir / "run.json").exists()
 
 
-def test_plan_and_execute(run, capsys):
+def test_plan_and_execute(run, capsys, tmp_path):
     data, run_dir = run
-    argv = ["--run", str(run_dir), "--episodes", "4", "--N", "2", "--batch-size", "4", "--videos", "1", "--quiet"]
+    media = tmp_path / "media"  # --out: rendered apart from RUN/eval, which the tables read
+    argv = ["--run", str(run_dir), "--episodes", "4", "--N", "2", "--batch-size", "4", "--videos", "1",
+            "--out", str(media), "--quiet"]
     assert _cli.run(evaluate_cli.main, argv) == 0
     out = capsys.readouterr().out
-    assert "RT" in out and "success" in out
+    assert "RT" in out and "success" in out and str(media) in out
     # the cpu preset refines with the anchored cold update in two rounds: its results carry both in their name
     name = "spe_N2_cold_anchor_rounds2"
-    assert (run_dir / "eval" / f"{name}.json").exists() and (run_dir / "eval" / f"{name}_overlay.png").exists()
-    assert (run_dir / "eval" / f"{name}_rollouts.mp4").stat().st_size > 1000
-    assert json.loads((run_dir / "eval" / f"{name}.json").read_text())["eval_config"]["rounds"] == 2
+    assert (media / f"{name}.json").exists() and (media / f"{name}_overlay.png").exists()
+    assert (media / f"{name}_rollouts.mp4").stat().st_size > 1000
+    assert json.loads((media / f"{name}.json").read_text())["eval_config"]["rounds"] == 2
+    assert not (run_dir / "eval" / f"{name}.json").exists()
 
 
 def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):

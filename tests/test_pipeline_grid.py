@@ -10,7 +10,7 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import pipeline
+from readjax import pipeline, report
 
 
 def _cfg(tmp_path, **kw):
@@ -22,8 +22,8 @@ def _cfg(tmp_path, **kw):
 class FakeRunner:
     """Stands in for the commands: writes what each would write, records the calls."""
 
-    def __init__(self, verify_rate=1.0):
-        self.calls, self.verify_rate = [], verify_rate
+    def __init__(self, verify_rate=1.0, media_outcome=1):
+        self.calls, self.verify_rate, self.media_outcome = [], verify_rate, media_outcome
 
     def __call__(self, argv):
         mod = argv[2].split(".")[1]
@@ -39,25 +39,47 @@ class FakeRunner:
         elif mod == "train":
             (Path(arg("--out")) / arg("--task") / arg("--name")).mkdir(parents=True, exist_ok=True)
         elif mod == "evaluate":
-            ev = Path(arg("--run")) / "eval"
+            ev = Path(arg("--out")) if "--out" in argv else Path(arg("--run")) / "eval"
             ev.mkdir(parents=True, exist_ok=True)
             name = f"spe_N{arg('--N')}" if "--N" in argv else "direct"
-            (ev / f"{name}.json").write_text("{}")
+            k = int(arg("--episodes"))
+            ok = self.media_outcome if "--out" in argv else 1
+            (ev / f"{name}.json").write_text(json.dumps({"seeds": list(range(1000000, 1000000 + k)),
+                                                         "success": [ok] * k}))
+            (ev / f"{name}_overlay.png").write_bytes(b"png")
+            if int(arg("--videos")):
+                (ev / f"{name}_rollouts.mp4").write_bytes(b"mp4")
         return subprocess.CompletedProcess(argv, 0)
 
 
 def test_grid_runs_in_order_then_skips_everything(tmp_path):
     cfg = _cfg(tmp_path)
     steps = pipeline.plan_steps(cfg)
-    kinds = [(s.task, s.kind) for s in steps[:6]]
+    kinds = [(s.task, s.kind) for s in steps[:7]]
     assert kinds == [("reach_target", "generate"), ("reach_target", "verify"), ("reach_target", "generate"),
-                     ("reach_target", "train"), ("reach_target", "evaluate"), ("reach_target", "evaluate")]
+                     ("reach_target", "train"), ("reach_target", "evaluate"), ("reach_target", "evaluate"),
+                     ("reach_target", "media")]
     runner, lines = FakeRunner(), []
     out = pipeline.run_steps(steps, log=lines.append, runner=runner)
-    assert out["ran"] == len(steps) == 2 * (3 + 1 + 2 + 1 + 1)
+    assert out["ran"] == len(steps) == 2 * (3 + 1 + 2 + 1 + 1 + 1)
     assert any("ETA" in ln for ln in lines[2:])
     assert (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N0.json").exists()
     assert (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").exists()
+    # the rendered episodes go to media/, apart from the evaluations a table reads
+    media = tmp_path / "results" / "push_button" / "read" / "media"
+    assert sorted(f.name for f in media.iterdir()) == ["spe_N100_overlay.png", "spe_N100_rollouts.mp4"]
+    argv = next(a for m, a in runner.calls if m == "evaluate" and "--out" in a)
+    assert argv[argv.index("--episodes") + 1] == "4" and argv[argv.index("--N") + 1] == "100"
+    assert not (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N100_rollouts.mp4").exists()
+    # every step's wall clock is recorded beside the task's results, and the report tabulates it
+    timing = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
+    assert timing["task"] == "reach_target" and len(timing["steps"]) == len(steps) // 2
+    assert {st["kind"] for st in timing["steps"].values()} == {"generate", "verify", "train", "evaluate", "media"}
+    assert all(st["seconds"] >= 0 and st["cpus"] >= 1 for st in timing["steps"].values())
+    costs = report.cost_lines(tmp_path / "results")
+    assert "| task | generate | verify | train deterministic | train read | evaluate | media | total | cores | load |" in costs
+    assert [ln.split(" |")[0] for ln in costs if ln.startswith("| ") and not ln.startswith("| task")] == [
+        "| RT", "| PB", "| all 2"]
     again = FakeRunner()
     assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
     assert again.calls == []
@@ -82,6 +104,30 @@ def test_a_failed_replay_stops_before_training(tmp_path):
     with pytest.raises(pipeline.PipelineError, match="100 %"):
         pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, runner=runner)
     assert [c[0] for c in runner.calls] == ["generate", "verify"]
+
+
+def test_rendered_episodes_must_match_the_evaluation(tmp_path):
+    """A video whose outcomes differ from the table's on the same seeds stops the grid."""
+    with pytest.raises(pipeline.PipelineError, match="depends on its batch"):
+        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))), log=lambda m: None,
+                           runner=FakeRunner(media_outcome=0))
+    steps = pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",), media_episodes=0))
+    assert "media" not in {s.kind for s in steps}
+    with pytest.raises(ValueError, match="--media-episodes"):
+        _cfg(tmp_path, media_episodes=-1)
+
+
+def test_eta_prices_each_step_by_its_own_label(tmp_path):
+    """The ETA uses the time of the same step on an earlier task, not the mean of its kind."""
+    steps = [s for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))) if s.kind == "train"]
+    read, det = steps
+    by_label = {read.label: [2100.0]}
+    by_kind = {"train": [2100.0]}
+    assert pipeline._eta([det], by_label, by_kind) == 2100.0  # nothing known of the regressor yet
+    by_label[det.label] = [420.0]
+    by_kind["train"].append(420.0)
+    assert pipeline._eta([read, det], by_label, by_kind) == 2520.0
+    assert pipeline._eta([read], {}, {}) is None
 
 
 def test_shards_split_the_tasks(tmp_path):
