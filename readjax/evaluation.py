@@ -82,6 +82,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     t_exec = time.time() - t0 - t_plan
     rate = float(np.mean(res["success"]))
     retrieved_pos = _positions(planner.camera, plan["retrieved"])  # where each plan's refinement started
+    gt_pos = _positions(planner.camera, ds.motion)
     result = {
         "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
         "method": planner.spec.get("method", "read"), "name": name,
@@ -89,7 +90,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "episodes": len(ds), "seeds": ds.seeds.tolist(), "scenes": "stored (guard passed)", "success": res["success"].astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         # mean world-frame distance between the retrieved and the ground-truth end-effector paths
-        "retrieval_error_m": float(np.mean(np.linalg.norm(retrieved_pos - _positions(planner.camera, ds.motion), axis=-1))),
+        "retrieval_error_m": float(np.mean(np.linalg.norm(retrieved_pos - gt_pos, axis=-1))),
         "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None, "rounds": rounds,
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
@@ -100,6 +101,11 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(), "commit": provenance.commit(),
     }
+    # every failure by mode (unreachable, task failure, gripper sequence, missed grasp, depth, ...)
+    result["failures"] = failure_modes.diagnose(
+        plan["motion"], plan["positions"], ds.motion, gt_pos,
+        np.asarray(planner.camera.cam_to_world)[:3, 3], res["success"], res["aborted"], res["failure"],
+        res["held"] if env.graspable else None)
     marks = scene_landmarks(env, scenes)
     if marks:  # where each plan ended: failures counted by the object they went for
         result["end_points"] = failure_modes.summarise(plan["positions"][:, -1], marks, res["success"])

@@ -84,3 +84,107 @@ def by_start(start: np.ndarray, landmarks: dict[str, np.ndarray], success, bins=
 def bucket_rank(label: str, bins=START_BINS_M) -> int:
     """A bucket label's place in :func:`_bucket_labels` (nearest first), for sorting."""
     return _bucket_labels(bins).index(label)
+
+
+# ---------------------------------------------------------------------------------------------
+# Failure modes of any task, from the plan, its ground truth and the executed rollout
+
+KEYFRAME_TOL_M = 0.02  # a key frame planned farther than this from the ground truth's is "off"
+MODES = ("unreachable", "task failure", "gripper sequence", "missed grasp", "depth", "image position",
+         "near miss")
+MODE_HELP = {
+    "unreachable": "IK could not reach more than the allowed number of waypoints: the episode aborted",
+    "task failure": "the task's own failure condition fired (e.g. the wire touched, an object knocked over)",
+    "gripper sequence": "the plan closes the gripper a different number of times than the demonstration",
+    "missed grasp": "the plan closes the gripper as often as the demonstration but never holds an object",
+    "depth": "a key frame is off by more than the tolerance, mostly along the camera's ray (depth)",
+    "image position": "a key frame is off by more than the tolerance, mostly across the image",
+    "near miss": "every key frame within the tolerance: the executed motion, not the plan's key points, failed",
+}
+
+
+def closings(grip: np.ndarray) -> np.ndarray:
+    """How many times each motion closes the gripper: open (> 0.5) -> closed transitions, (B, T) -> (B,)."""
+    closed = np.asarray(grip) <= 0.5
+    return np.sum(closed[:, 1:] & ~closed[:, :-1], axis=1) + closed[:, 0]
+
+
+def keyframes(gt_grip: np.ndarray) -> list[np.ndarray]:
+    """Per episode, the ground truth's key frames: the frames where its gripper opens or closes, and
+    the last frame (where the motion ends)."""
+    closed = np.asarray(gt_grip) <= 0.5
+    out = []
+    for c in closed:
+        change = np.nonzero(c[1:] != c[:-1])[0] + 1
+        out.append(np.unique(np.append(change, len(c) - 1)))
+    return out
+
+
+def keyframe_errors(plan_pos: np.ndarray, gt_pos: np.ndarray, gt_grip: np.ndarray,
+                    cam_origin: np.ndarray) -> dict[str, np.ndarray]:
+    """The worst key frame of each plan against its ground truth (world positions (B, T, 3)): the 3D
+    distance there, and its split along the camera's ray to the ground-truth point (depth) and
+    across it (image position), in m, (B,) each; and the worst frame's index."""
+    plan_pos, gt_pos = np.asarray(plan_pos, np.float64), np.asarray(gt_pos, np.float64)
+    worst = {k: np.zeros(len(plan_pos)) for k in ("error", "depth", "lateral")}
+    frame = np.zeros(len(plan_pos), int)
+    for b, frames in enumerate(keyframes(gt_grip)):
+        e = plan_pos[b, frames] - gt_pos[b, frames]
+        dist = np.linalg.norm(e, axis=-1)
+        k = int(np.argmax(dist))
+        ray = gt_pos[b, frames[k]] - np.asarray(cam_origin, np.float64)
+        ray /= np.linalg.norm(ray)
+        along = float(e[k] @ ray)
+        worst["error"][b], worst["depth"][b] = dist[k], abs(along)
+        worst["lateral"][b] = np.linalg.norm(e[k] - along * ray)
+        frame[b] = frames[k]
+    return {**worst, "frame": frame}
+
+
+def classify(success, aborted, failure, plan_closings, gt_closings, held, errors: dict[str, np.ndarray],
+             tol: float = KEYFRAME_TOL_M) -> list[str | None]:
+    """Each episode's failure mode (:data:`MODES`, the first that applies, in that order), None for a
+    success. ``held``: (B,) whether the rollout ever held an object, or None for a task without
+    graspable objects (then no failure is a missed grasp)."""
+    modes = []
+    for b, ok in enumerate(np.asarray(success, bool)):
+        if ok:
+            modes.append(None)
+        elif aborted[b]:
+            modes.append("unreachable")
+        elif failure[b]:
+            modes.append("task failure")
+        elif plan_closings[b] != gt_closings[b]:
+            modes.append("gripper sequence")
+        elif held is not None and gt_closings[b] > 0 and not held[b]:
+            modes.append("missed grasp")
+        elif errors["error"][b] > tol:
+            modes.append("depth" if errors["depth"][b] > errors["lateral"][b] else "image position")
+        else:
+            modes.append("near miss")
+    return modes
+
+
+def diagnose(plan_motion: np.ndarray, plan_pos: np.ndarray, gt_motion: np.ndarray, gt_pos: np.ndarray,
+             cam_origin: np.ndarray, success, aborted, failure, held, tol: float = KEYFRAME_TOL_M) -> dict:
+    """What an evaluation records to explain its failures: per episode the failure mode, the plan's
+    and the demonstration's gripper closings and the worst key-frame error (cm, total / depth /
+    across the image); the failures counted by mode; and the median worst key-frame error of the
+    episodes that succeeded and of those that failed."""
+    success = np.asarray(success, bool)
+    plan_c, gt_c = closings(plan_motion[..., 9]), closings(gt_motion[..., 9])
+    err = keyframe_errors(plan_pos, gt_pos, gt_motion[..., 9], cam_origin)
+    modes = classify(success, np.asarray(aborted, bool), np.asarray(failure, bool), plan_c, gt_c,
+                     None if held is None else np.asarray(held, bool), err, tol)
+    counts = Counter(m for m in modes if m is not None)
+    cm = lambda x: np.round(100 * np.asarray(x), 2).tolist()  # noqa: E731
+    median = lambda mask: float(np.round(100 * np.median(err["error"][mask]), 2)) if mask.any() else None  # noqa: E731
+    return {
+        "tolerance_cm": 100 * tol,
+        "mode": modes,
+        "plan_closings": plan_c.astype(int).tolist(), "gt_closings": gt_c.astype(int).tolist(),
+        "keyframe_error_cm": cm(err["error"]), "keyframe_depth_cm": cm(err["depth"]),
+        "keyframe_lateral_cm": cm(err["lateral"]), "keyframe_frame": err["frame"].astype(int).tolist(),
+        "counts": {m: counts[m] for m in MODES if counts[m]},
+        "median_keyframe_error_cm": {"succeeded": median(success), "failed": median(~success)},
+    }

@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from readjax import paper, tasks
+from readjax import failure_modes, paper, tasks
 from readjax.config import preset
 from readjax.report import bar_chart, eval_config_of, mcnemar_p, paired_outcomes, protocol, with_defaults
 
@@ -141,11 +141,39 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
         cells = [paired(read, other[task]) if task in other else "–" for other in (rows[RETRIEVAL_ROW], rows[DET_ROW])]
         out.append(f"| {code} | " + " | ".join(cells) + " |")
     out.append("")
+    out += failure_lines({labels[k]: rows[k] for k in (READ_ROW, DET_ROW)})
     out += training_lines({labels[k]: v for k, v in rows.items()})
     out += media_lines(rows[READ_ROW], chart.parent if chart is not None else None)
     if notes:
         out += ["Cells more than one evaluation could fill:", ""] + [f"- {n}" for n in notes] + [""]
     return out
+
+
+def failure_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
+    """The rows' failures per task counted by mode (the evaluation's ``failures`` record, see
+    :mod:`readjax.failure_modes`), with the median worst key-frame error of failed and of
+    successful episodes; tasks whose evaluation predates the record are left out."""
+    body = []
+    for code in tasks.AVG16:
+        for label, by_task in rows.items():
+            r = by_task.get(tasks.canonical_name(code))
+            if r is None or "failures" not in r:
+                continue
+            f = r["failures"]
+            med = f["median_keyframe_error_cm"]
+            fmt = lambda x: "–" if x is None else f"{x:.1f}"  # noqa: E731
+            failed = len(r["success"]) - sum(r["success"])
+            body.append(f"| {code} | {label} | {failed} | " + " | ".join(str(f["counts"].get(m, 0) or "")
+                        for m in failure_modes.MODES) + f" | {fmt(med['failed'])} / {fmt(med['succeeded'])} |")
+    if not body:
+        return []
+    tol = next(r["failures"]["tolerance_cm"] for by_task in rows.values() for r in by_task.values() if "failures" in r)
+    return ["Failures by mode (the first that applies, left to right; key frames: where the demonstration opens "
+            f"or closes the gripper, and its end; a key frame is off beyond {tol:g} cm):", ""] + [
+            f"- *{m}*: {failure_modes.MODE_HELP[m]}" for m in failure_modes.MODES] + [
+            "", "| task | row | failed | " + " | ".join(failure_modes.MODES)
+            + " | worst key-frame error, cm (median: failed / succeeded) |",
+            "|---" * (len(failure_modes.MODES) + 4) + "|"] + body + [""]
 
 
 def training_lines(rows: dict[str, dict[str, dict]]) -> list[str]:

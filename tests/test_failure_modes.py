@@ -49,3 +49,69 @@ def test_reach_target_landmarks_are_the_spheres():
     assert np.all(np.linalg.norm(marks["distractor"] - marks["target"], axis=-1) >= 0.2 - 1e-6)
     assert scene_landmarks(tasks.make("push_button"), jax.vmap(tasks.make("push_button").sample_scene)(
         jax.random.split(jax.random.key(0), 2))) == {}
+
+
+def _grip(*closed_spans, frames=11):
+    """A gripper channel (frames,) open (1) except on the given [start, stop) spans (0)."""
+    g = np.ones(frames)
+    for a, b in closed_spans:
+        g[a:b] = 0.0
+    return g
+
+
+def test_closings_and_key_frames():
+    grips = np.stack([_grip(), _grip((3, 6)), _grip((2, 4), (7, 11)), _grip((0, 11))])
+    assert failure_modes.closings(grips).tolist() == [0, 1, 2, 1]  # a motion that starts closed counts once
+    frames = failure_modes.keyframes(grips)
+    assert [f.tolist() for f in frames] == [[10], [3, 6, 10], [2, 4, 7, 10], [10]]
+
+
+def test_key_frame_error_splits_depth_from_image_position():
+    """The camera at the origin looks along +x: an error along x is depth, one along y crosses the image."""
+    t = 11
+    gt = np.zeros((2, t, 3))
+    gt[:, :, 0] = 1.0  # the ground truth 1 m in front of the camera
+    plan = gt.copy()
+    plan[0, -1, 0] += 0.05  # episode 0 ends 5 cm too deep
+    plan[1, 5, 1] += 0.03  # episode 1 is 3 cm sideways at its key frame 5 (where the gripper closes)
+    plan[1, 2, 1] += 0.5  # ... and far off at frame 2, which is no key frame
+    grips = np.stack([_grip(), _grip((5, 11))])
+    err = failure_modes.keyframe_errors(plan, gt, grips, np.zeros(3))
+    np.testing.assert_allclose(err["error"], [0.05, 0.03], atol=1e-9)
+    np.testing.assert_allclose(err["depth"], [0.05, 0.0], atol=1e-9)
+    np.testing.assert_allclose(err["lateral"], [0.0, 0.03], atol=1e-9)
+    assert err["frame"].tolist() == [10, 5]
+
+
+def test_failure_modes_truth_table():
+    """The first mode that applies names a failure, in the order of MODES; a success has none."""
+    n = 8
+    success = np.array([1, 0, 0, 0, 0, 0, 0, 0], bool)
+    aborted = np.array([0, 1, 0, 0, 0, 0, 0, 0], bool)
+    failure = np.array([0, 1, 1, 0, 0, 0, 0, 0], bool)
+    plan_c = np.array([1, 1, 1, 2, 1, 1, 1, 1])
+    gt_c = np.ones(n, int)
+    held = np.array([1, 1, 1, 1, 0, 1, 1, 1], bool)
+    errors = {"error": np.array([0.1, 0.1, 0.1, 0.1, 0.1, 0.05, 0.05, 0.01]),
+              "depth": np.array([0, 0, 0, 0, 0.1, 0.04, 0.01, 0.0]),
+              "lateral": np.array([0, 0, 0, 0, 0, 0.01, 0.04, 0.01])}
+    modes = failure_modes.classify(success, aborted, failure, plan_c, gt_c, held, errors)
+    assert modes == [None, "unreachable", "task failure", "gripper sequence", "missed grasp", "depth",
+                     "image position", "near miss"]
+    # a task without graspable objects has no missed grasps
+    assert failure_modes.classify(success, aborted, failure, plan_c, gt_c, None, errors)[4] == "depth"
+
+
+def test_diagnose_counts_failures_by_mode():
+    t = 11
+    gt_pos = np.zeros((3, t, 3))
+    gt_pos[:, :, 0] = 1.0
+    plan_pos = gt_pos.copy()
+    plan_pos[2, -1, 0] += 0.1  # a failure 10 cm too deep
+    motion = np.ones((3, t, 10))
+    out = failure_modes.diagnose(motion, plan_pos, motion, gt_pos, np.zeros(3), success=[1, 1, 0],
+                                 aborted=[0, 0, 0], failure=[0, 0, 0], held=None)
+    assert out["mode"] == [None, None, "depth"] and out["counts"] == {"depth": 1}
+    assert out["keyframe_error_cm"] == [0.0, 0.0, 10.0] and out["keyframe_depth_cm"][2] == 10.0
+    assert out["median_keyframe_error_cm"] == {"succeeded": 0.0, "failed": 10.0}
+    assert set(failure_modes.MODE_HELP) == set(failure_modes.MODES)

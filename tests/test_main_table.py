@@ -97,3 +97,25 @@ def test_reads_rendered_episodes_are_shown_for_the_cell_they_belong_to(tmp_path)
             "[rollout video](../results/reach_target/read_a/media/spe_N100_now_rollouts.mp4).") in section
     assert "(../results/reach_target/read_a/media/spe_N100_now_overlay.png)" in section
     assert "**PB**" not in section and "other_overlay" not in section
+
+
+def test_failures_are_counted_by_mode_per_row(tmp_path):
+    runs = tmp_path / "results"
+    _write(runs, "reach_target", "read_a", "spe_N100_now", [True, False, False, True])
+    _write(runs, "reach_target", "det_a", "direct", [False] * 4, method="deterministic", N=None)
+    _write(runs, "push_button", "read_a", "spe_N100_now", [True] * 2)  # predates the record: left out
+    for run, name, modes, med in (("read_a", "spe_N100_now", [None, "depth", "depth", None], (4.0, 0.5)),
+                                  ("det_a", "direct", ["unreachable", "near miss", "depth", "depth"], (3.25, None))):
+        f = runs / "reach_target" / run / "eval" / f"{name}.json"
+        counts = {m: modes.count(m) for m in dict.fromkeys(modes) if m}
+        f.write_text(json.dumps(dict(json.loads(f.read_text()), failures={
+            "tolerance_cm": 2.0, "mode": modes, "counts": counts,
+            "median_keyframe_error_cm": {"failed": med[0], "succeeded": med[1]}})))
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det_a"]) == 0
+    section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
+    assert "| task | row | failed | unreachable | task failure | gripper sequence | missed grasp | depth | " \
+           "image position | near miss |" in section
+    assert "| RT | READ (N=100): `read_a` | 2 |  |  |  |  | 2 |  |  | 4.0 / 0.5 |" in section
+    assert "| RT | Deterministic: `det_a` | 4 | 1 |  |  |  | 2 |  | 1 | 3.2 / – |" in section
+    assert "| PB |" not in section.split("Failures by mode")[1].split("How the rows")[0]

@@ -160,6 +160,11 @@ def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
     # how long each stage trained and why it stopped (the tiny run: at its step caps)
     assert {k: (v["steps"], v["stop"]["reason"]) for k, v in result["training"].items()} == {
         "vae": (6, "step cap"), "read": (4, "step cap")}
+    # every failure has a mode, every success none; RT has nothing to grasp, so no missed grasps
+    fails = result["failures"]
+    assert [m is None for m in fails["mode"]] == [bool(s) for s in result["success"]]
+    assert sum(fails["counts"].values()) == 4 - sum(result["success"]) and "missed grasp" not in fails["counts"]
+    assert len(fails["keyframe_error_cm"]) == 4 and fails["gt_closings"] == [0] * 4
     # RT has landmarks: every plan's end point is classified (target or distractor)
     assert len(result["end_points"]["nearest_landmark"]) == 4
     assert set(result["end_points"]["nearest_landmark"]) <= {"target", "distractor"}

@@ -80,6 +80,7 @@ def executor(env, cam: CameraParams, cfg: ExecConfig = ExecConfig()):
             "skipped": n_skip,
             "aborted": aborted,
             "failure": state.failure,
+            "held": jnp.any(trace.attached),  # an object was held at some step (a grasp happened)
             "tcp_pos": trace.tcp_pos,
             "ctrl": trace.ctrl,
             "attached": trace.attached,
