@@ -82,7 +82,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     t_exec = time.time() - t0 - t_plan
     rate = float(np.mean(res["success"]))
     retrieved_pos = _positions(planner.camera, plan["retrieved"])  # where each plan's refinement started
-    gt_pos = _positions(planner.camera, ds.motion)
+    gt_pos, gt_rot = (np.asarray(x) for x in motion_lib.decode(planner.camera, jnp.asarray(ds.motion))[:2])
     result = {
         "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
         "method": planner.spec.get("method", "read"), "name": name,
@@ -101,9 +101,9 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(), "commit": provenance.commit(),
     }
-    # every failure by mode (unreachable, task failure, gripper sequence, missed grasp, depth, ...)
+    # every failure by mode (unreachable, gripper sequence, missed grasp, depth, ..., task failure)
     result["failures"] = failure_modes.diagnose(
-        plan["motion"], plan["positions"], ds.motion, gt_pos,
+        plan["motion"], (plan["positions"], plan["rotations"]), ds.motion, (gt_pos, gt_rot),
         np.asarray(planner.camera.cam_to_world)[:3, 3], res["success"], res["aborted"], res["failure"],
         res["held"] if env.graspable else None)
     marks = scene_landmarks(env, scenes)

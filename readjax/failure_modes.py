@@ -90,16 +90,20 @@ def bucket_rank(label: str, bins=START_BINS_M) -> int:
 # Failure modes of any task, from the plan, its ground truth and the executed rollout
 
 KEYFRAME_TOL_M = 0.02  # a key frame planned farther than this from the ground truth's is "off"
-MODES = ("unreachable", "task failure", "gripper sequence", "missed grasp", "depth", "image position",
-         "near miss")
+KEYFRAME_TOL_DEG = 10.0  # ... or turned more than this away from it
+# causes before consequences: a plan whose key frames are off explains a task failure that follows
+MODES = ("unreachable", "gripper sequence", "missed grasp", "depth", "image position", "orientation",
+         "task failure", "near miss")
 MODE_HELP = {
     "unreachable": "IK could not reach more than the allowed number of waypoints: the episode aborted",
-    "task failure": "the task's own failure condition fired (e.g. the wire touched, an object knocked over)",
     "gripper sequence": "the plan closes the gripper a different number of times than the demonstration",
     "missed grasp": "the plan closes the gripper as often as the demonstration but never holds an object",
-    "depth": "a key frame is off by more than the tolerance, mostly along the camera's ray (depth)",
-    "image position": "a key frame is off by more than the tolerance, mostly across the image",
-    "near miss": "every key frame within the tolerance: the executed motion, not the plan's key points, failed",
+    "depth": "a key frame is off by more than the position tolerance, mostly along the camera's ray",
+    "image position": "a key frame is off by more than the position tolerance, mostly across the image",
+    "orientation": "every key frame in place, but one turned more than the rotation tolerance away",
+    "task failure": "key frames in place, but the task's own failure condition fired between them "
+                    "(e.g. the wire touched, a cap lifted before it was unscrewed)",
+    "near miss": "every key frame within the tolerances and no failure condition: the motion between them failed",
 }
 
 
@@ -120,15 +124,24 @@ def keyframes(gt_grip: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def keyframe_errors(plan_pos: np.ndarray, gt_pos: np.ndarray, gt_grip: np.ndarray,
-                    cam_origin: np.ndarray) -> dict[str, np.ndarray]:
+def rotation_angles(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """Geodesic angle (degrees) between rotation matrices (..., 3, 3)."""
+    cos = (np.einsum("...ij,...ij->...", np.asarray(r1, np.float64), np.asarray(r2, np.float64)) - 1) / 2
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def keyframe_errors(plan_pos: np.ndarray, gt_pos: np.ndarray, gt_grip: np.ndarray, cam_origin: np.ndarray,
+                    plan_rot: np.ndarray | None = None, gt_rot: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The worst key frame of each plan against its ground truth (world positions (B, T, 3)): the 3D
     distance there, and its split along the camera's ray to the ground-truth point (depth) and
-    across it (image position), in m, (B,) each; and the worst frame's index."""
+    across it (image position), in m, (B,) each; the worst frame's index; and, given world
+    rotations (B, T, 3, 3), the largest rotation error over the key frames (degrees)."""
     plan_pos, gt_pos = np.asarray(plan_pos, np.float64), np.asarray(gt_pos, np.float64)
-    worst = {k: np.zeros(len(plan_pos)) for k in ("error", "depth", "lateral")}
+    worst = {k: np.zeros(len(plan_pos)) for k in ("error", "depth", "lateral", "rotation_deg")}
     frame = np.zeros(len(plan_pos), int)
     for b, frames in enumerate(keyframes(gt_grip)):
+        if plan_rot is not None:
+            worst["rotation_deg"][b] = rotation_angles(plan_rot[b, frames], gt_rot[b, frames]).max()
         e = plan_pos[b, frames] - gt_pos[b, frames]
         dist = np.linalg.norm(e, axis=-1)
         k = int(np.argmax(dist))
@@ -142,7 +155,7 @@ def keyframe_errors(plan_pos: np.ndarray, gt_pos: np.ndarray, gt_grip: np.ndarra
 
 
 def classify(success, aborted, failure, plan_closings, gt_closings, held, errors: dict[str, np.ndarray],
-             tol: float = KEYFRAME_TOL_M) -> list[str | None]:
+             tol: float = KEYFRAME_TOL_M, tol_deg: float = KEYFRAME_TOL_DEG) -> list[str | None]:
     """Each episode's failure mode (:data:`MODES`, the first that applies, in that order), None for a
     success. ``held``: (B,) whether the rollout ever held an object, or None for a task without
     graspable objects (then no failure is a missed grasp)."""
@@ -152,39 +165,44 @@ def classify(success, aborted, failure, plan_closings, gt_closings, held, errors
             modes.append(None)
         elif aborted[b]:
             modes.append("unreachable")
-        elif failure[b]:
-            modes.append("task failure")
         elif plan_closings[b] != gt_closings[b]:
             modes.append("gripper sequence")
         elif held is not None and gt_closings[b] > 0 and not held[b]:
             modes.append("missed grasp")
         elif errors["error"][b] > tol:
             modes.append("depth" if errors["depth"][b] > errors["lateral"][b] else "image position")
+        elif errors["rotation_deg"][b] > tol_deg:
+            modes.append("orientation")
+        elif failure[b]:
+            modes.append("task failure")
         else:
             modes.append("near miss")
     return modes
 
 
-def diagnose(plan_motion: np.ndarray, plan_pos: np.ndarray, gt_motion: np.ndarray, gt_pos: np.ndarray,
-             cam_origin: np.ndarray, success, aborted, failure, held, tol: float = KEYFRAME_TOL_M) -> dict:
+def diagnose(plan_motion: np.ndarray, plan_pose: tuple, gt_motion: np.ndarray, gt_pose: tuple,
+             cam_origin: np.ndarray, success, aborted, failure, held, tol: float = KEYFRAME_TOL_M,
+             tol_deg: float = KEYFRAME_TOL_DEG) -> dict:
     """What an evaluation records to explain its failures: per episode the failure mode, the plan's
-    and the demonstration's gripper closings and the worst key-frame error (cm, total / depth /
-    across the image); the failures counted by mode; and the median worst key-frame error of the
-    episodes that succeeded and of those that failed."""
+    and the demonstration's gripper closings and the worst key-frame errors (position in cm, total /
+    depth / across the image; rotation in degrees); the failures counted by mode; and the median
+    worst key-frame position error of the episodes that succeeded and of those that failed.
+    ``plan_pose`` / ``gt_pose``: world (positions (B, T, 3), rotations (B, T, 3, 3))."""
     success = np.asarray(success, bool)
     plan_c, gt_c = closings(plan_motion[..., 9]), closings(gt_motion[..., 9])
-    err = keyframe_errors(plan_pos, gt_pos, gt_motion[..., 9], cam_origin)
+    err = keyframe_errors(plan_pose[0], gt_pose[0], gt_motion[..., 9], cam_origin, plan_pose[1], gt_pose[1])
     modes = classify(success, np.asarray(aborted, bool), np.asarray(failure, bool), plan_c, gt_c,
-                     None if held is None else np.asarray(held, bool), err, tol)
+                     None if held is None else np.asarray(held, bool), err, tol, tol_deg)
     counts = Counter(m for m in modes if m is not None)
     cm = lambda x: np.round(100 * np.asarray(x), 2).tolist()  # noqa: E731
     median = lambda mask: float(np.round(100 * np.median(err["error"][mask]), 2)) if mask.any() else None  # noqa: E731
     return {
-        "tolerance_cm": 100 * tol,
+        "tolerance_cm": 100 * tol, "tolerance_deg": tol_deg,
         "mode": modes,
         "plan_closings": plan_c.astype(int).tolist(), "gt_closings": gt_c.astype(int).tolist(),
         "keyframe_error_cm": cm(err["error"]), "keyframe_depth_cm": cm(err["depth"]),
         "keyframe_lateral_cm": cm(err["lateral"]), "keyframe_frame": err["frame"].astype(int).tolist(),
+        "keyframe_rotation_deg": np.round(err["rotation_deg"], 1).tolist(),
         "counts": {m: counts[m] for m in MODES if counts[m]},
         "median_keyframe_error_cm": {"succeeded": median(success), "failed": median(~success)},
     }

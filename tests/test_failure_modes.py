@@ -84,22 +84,39 @@ def test_key_frame_error_splits_depth_from_image_position():
 
 
 def test_failure_modes_truth_table():
-    """The first mode that applies names a failure, in the order of MODES; a success has none."""
-    n = 8
-    success = np.array([1, 0, 0, 0, 0, 0, 0, 0], bool)
-    aborted = np.array([0, 1, 0, 0, 0, 0, 0, 0], bool)
-    failure = np.array([0, 1, 1, 0, 0, 0, 0, 0], bool)
-    plan_c = np.array([1, 1, 1, 2, 1, 1, 1, 1])
+    """The first mode that applies names a failure, in the order of MODES (causes before the task
+    failure they lead to); a success has none."""
+    n = 9
+    success = np.array([1, 0, 0, 0, 0, 0, 0, 0, 0], bool)
+    aborted = np.array([0, 1, 0, 0, 0, 0, 0, 0, 0], bool)
+    failure = np.array([0, 1, 1, 1, 1, 1, 1, 1, 0], bool)  # a failure condition behind most causes
+    plan_c = np.array([1, 2, 2, 1, 1, 1, 1, 1, 1])
     gt_c = np.ones(n, int)
-    held = np.array([1, 1, 1, 1, 0, 1, 1, 1], bool)
-    errors = {"error": np.array([0.1, 0.1, 0.1, 0.1, 0.1, 0.05, 0.05, 0.01]),
-              "depth": np.array([0, 0, 0, 0, 0.1, 0.04, 0.01, 0.0]),
-              "lateral": np.array([0, 0, 0, 0, 0, 0.01, 0.04, 0.01])}
+    held = np.array([1, 1, 1, 0, 1, 1, 1, 1, 1], bool)
+    errors = {"error": np.array([0.1, 0.1, 0.1, 0.1, 0.05, 0.05, 0.01, 0.01, 0.01]),
+              "depth": np.array([0, 0, 0, 0.1, 0.04, 0.01, 0.0, 0.0, 0.0]),
+              "lateral": np.array([0, 0, 0, 0, 0.01, 0.04, 0.01, 0.01, 0.01]),
+              "rotation_deg": np.array([90, 90, 90, 90, 90, 90, 30, 5, 5.0])}
     modes = failure_modes.classify(success, aborted, failure, plan_c, gt_c, held, errors)
-    assert modes == [None, "unreachable", "task failure", "gripper sequence", "missed grasp", "depth",
-                     "image position", "near miss"]
+    assert modes == [None, "unreachable", "gripper sequence", "missed grasp", "depth", "image position",
+                     "orientation", "task failure", "near miss"]
     # a task without graspable objects has no missed grasps
-    assert failure_modes.classify(success, aborted, failure, plan_c, gt_c, None, errors)[4] == "depth"
+    assert failure_modes.classify(success, aborted, failure, plan_c, gt_c, None, errors)[3] == "depth"
+
+
+def test_rotation_error_at_key_frames():
+    """The largest rotation error over the key frames only, in degrees."""
+    t = 11
+    eye = np.broadcast_to(np.eye(3), (1, t, 3, 3)).copy()
+    turned = eye.copy()
+    c, s_ = np.cos(np.radians(30)), np.sin(np.radians(30))
+    turned[0, -1] = [[c, -s_, 0], [s_, c, 0], [0, 0, 1]]  # 30 degrees about z at the last frame
+    turned[0, 3] = [[1, 0, 0], [0, -1, 0], [0, 0, -1]]  # 180 degrees at frame 3: no key frame
+    pos = np.zeros((1, t, 3))
+    pos[..., 0] = 1.0
+    err = failure_modes.keyframe_errors(pos, pos, _grip()[None], np.zeros(3), turned, eye)
+    np.testing.assert_allclose(err["rotation_deg"], [30.0], atol=1e-6)
+    np.testing.assert_allclose(failure_modes.rotation_angles(turned[0, 3], eye[0, 3]), 180.0)
 
 
 def test_diagnose_counts_failures_by_mode():
@@ -109,9 +126,11 @@ def test_diagnose_counts_failures_by_mode():
     plan_pos = gt_pos.copy()
     plan_pos[2, -1, 0] += 0.1  # a failure 10 cm too deep
     motion = np.ones((3, t, 10))
-    out = failure_modes.diagnose(motion, plan_pos, motion, gt_pos, np.zeros(3), success=[1, 1, 0],
-                                 aborted=[0, 0, 0], failure=[0, 0, 0], held=None)
+    rot = np.broadcast_to(np.eye(3), (3, t, 3, 3))
+    out = failure_modes.diagnose(motion, (plan_pos, rot), motion, (gt_pos, rot), np.zeros(3), success=[1, 1, 0],
+                                 aborted=[0, 0, 0], failure=[0, 0, 1], held=None)
     assert out["mode"] == [None, None, "depth"] and out["counts"] == {"depth": 1}
     assert out["keyframe_error_cm"] == [0.0, 0.0, 10.0] and out["keyframe_depth_cm"][2] == 10.0
     assert out["median_keyframe_error_cm"] == {"succeeded": 0.0, "failed": 10.0}
+    assert out["keyframe_rotation_deg"] == [0.0, 0.0, 0.0] and out["tolerance_deg"] == 10.0
     assert set(failure_modes.MODE_HELP) == set(failure_modes.MODES)

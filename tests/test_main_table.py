@@ -114,8 +114,8 @@ def test_failures_are_counted_by_mode_per_row(tmp_path):
     out = tmp_path / "results.md"
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det_a"]) == 0
     section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
-    assert "| task | row | failed | unreachable | task failure | gripper sequence | missed grasp | depth | " \
-           "image position | near miss |" in section
-    assert "| RT | READ (N=100): `read_a` | 2 |  |  |  |  | 2 |  |  | 4.0 / 0.5 |" in section
-    assert "| RT | Deterministic: `det_a` | 4 | 1 |  |  |  | 2 |  | 1 | 3.2 / – |" in section
+    assert "| task | row | failed | unreachable | gripper sequence | missed grasp | depth | " \
+           "image position | orientation | task failure | near miss |" in section
+    assert "| RT | READ (N=100): `read_a` | 2 |  |  |  | 2 |  |  |  |  | 4.0 / 0.5 |" in section
+    assert "| RT | Deterministic: `det_a` | 4 | 1 |  |  | 2 |  |  |  | 1 | 3.2 / – |" in section
     assert "| PB |" not in section.split("Failures by mode")[1].split("How the rows")[0]
