@@ -100,7 +100,8 @@ MODE_HELP = {
     "missed grasp": "the plan closes the gripper as often as the demonstration but never holds an object",
     "depth": "a key frame is off by more than the position tolerance, mostly along the camera's ray",
     "image position": "a key frame is off by more than the position tolerance, mostly across the image",
-    "orientation": "every key frame in place, but one turned more than the rotation tolerance away",
+    "orientation": "key frames in place, but the approach axis tilted or the turn between two key frames "
+                   "off by more than the rotation tolerance (a constant yaw offset does not count)",
     "task failure": "key frames in place, but the task's own failure condition fired between them "
                     "(e.g. the wire touched, a cap lifted before it was unscrewed)",
     "near miss": "every key frame within the tolerances and no failure condition: the motion between them failed",
@@ -130,18 +131,33 @@ def rotation_angles(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
+def orientation_error(plan_rot: np.ndarray, gt_rot: np.ndarray, frames: np.ndarray) -> float:
+    """One plan's orientation error at its key frames (degrees), blind to a constant turn about the
+    gripper's approach axis: the largest tilt of the approach axis (the rotation's third column)
+    from the ground truth's, and the largest error in how far the gripper turns between consecutive
+    key frames (from the first frame when there is only one). A grasp of a symmetric object (a
+    square cap, a cylinder) at another yaw is as good as the demonstration's, so the absolute
+    rotation error is no measure of a failure; a tilted approach or a short twist is."""
+    pr, gr = np.asarray(plan_rot, np.float64), np.asarray(gt_rot, np.float64)
+    tilt = np.degrees(np.arccos(np.clip(np.sum(pr[frames, :, 2] * gr[frames, :, 2], axis=-1), -1.0, 1.0)))
+    ends = frames if len(frames) > 1 else np.concatenate([[0], frames])
+    turn_p = np.einsum("kji,kjl->kil", pr[ends[:-1]], pr[ends[1:]])
+    turn_g = np.einsum("kji,kjl->kil", gr[ends[:-1]], gr[ends[1:]])
+    return float(max(tilt.max(), rotation_angles(turn_p, turn_g).max()))
+
+
 def keyframe_errors(plan_pos: np.ndarray, gt_pos: np.ndarray, gt_grip: np.ndarray, cam_origin: np.ndarray,
                     plan_rot: np.ndarray | None = None, gt_rot: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The worst key frame of each plan against its ground truth (world positions (B, T, 3)): the 3D
     distance there, and its split along the camera's ray to the ground-truth point (depth) and
     across it (image position), in m, (B,) each; the worst frame's index; and, given world
-    rotations (B, T, 3, 3), the largest rotation error over the key frames (degrees)."""
+    rotations (B, T, 3, 3), the orientation error (:func:`orientation_error`, degrees)."""
     plan_pos, gt_pos = np.asarray(plan_pos, np.float64), np.asarray(gt_pos, np.float64)
     worst = {k: np.zeros(len(plan_pos)) for k in ("error", "depth", "lateral", "rotation_deg")}
     frame = np.zeros(len(plan_pos), int)
     for b, frames in enumerate(keyframes(gt_grip)):
         if plan_rot is not None:
-            worst["rotation_deg"][b] = rotation_angles(plan_rot[b, frames], gt_rot[b, frames]).max()
+            worst["rotation_deg"][b] = orientation_error(plan_rot[b], gt_rot[b], frames)
         e = plan_pos[b, frames] - gt_pos[b, frames]
         dist = np.linalg.norm(e, axis=-1)
         k = int(np.argmax(dist))

@@ -104,19 +104,30 @@ def test_failure_modes_truth_table():
     assert failure_modes.classify(success, aborted, failure, plan_c, gt_c, None, errors)[3] == "depth"
 
 
-def test_rotation_error_at_key_frames():
-    """The largest rotation error over the key frames only, in degrees."""
-    t = 11
-    eye = np.broadcast_to(np.eye(3), (1, t, 3, 3)).copy()
-    turned = eye.copy()
-    c, s_ = np.cos(np.radians(30)), np.sin(np.radians(30))
-    turned[0, -1] = [[c, -s_, 0], [s_, c, 0], [0, 0, 1]]  # 30 degrees about z at the last frame
-    turned[0, 3] = [[1, 0, 0], [0, -1, 0], [0, 0, -1]]  # 180 degrees at frame 3: no key frame
-    pos = np.zeros((1, t, 3))
-    pos[..., 0] = 1.0
-    err = failure_modes.keyframe_errors(pos, pos, _grip()[None], np.zeros(3), turned, eye)
-    np.testing.assert_allclose(err["rotation_deg"], [30.0], atol=1e-6)
-    np.testing.assert_allclose(failure_modes.rotation_angles(turned[0, 3], eye[0, 3]), 180.0)
+def _rz(deg):
+    c, s_ = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1.0]])
+
+
+def test_orientation_error_ignores_a_constant_yaw_but_not_a_short_twist():
+    """Key frames 5 (grasp) and 10 (end). The demonstration twists 160 degrees about the approach
+    axis between them."""
+    t, frames = 11, np.array([5, 10])
+    gt = np.stack([np.eye(3)] * 5 + [_rz(0)] * 5 + [_rz(160)])
+    assert failure_modes.orientation_error(gt, gt, frames) == pytest.approx(0.0, abs=1e-6)
+    yawed = np.einsum("tij,jk->tik", gt, _rz(90))  # the same motion grasping a square cap 90 degrees on
+    assert failure_modes.orientation_error(yawed, gt, frames) == pytest.approx(0.0, abs=1e-4)
+    short = gt.copy()
+    short[10] = _rz(140)  # twists 20 degrees too little
+    assert failure_modes.orientation_error(short, gt, frames) == pytest.approx(20.0, abs=1e-4)
+    tilted = gt.copy()
+    c, s_ = np.cos(np.radians(15)), np.sin(np.radians(15))
+    tilted[5] = np.array([[1, 0, 0], [0, c, -s_], [0, s_, c]])  # the approach axis tilted 15 degrees
+    assert failure_modes.orientation_error(tilted, gt, frames) == pytest.approx(15.0, abs=1e-4)
+    np.testing.assert_allclose(failure_modes.rotation_angles(_rz(180), np.eye(3)), 180.0)
+    err = failure_modes.keyframe_errors(np.zeros((1, t, 3)) + [1, 0, 0], np.zeros((1, t, 3)) + [1, 0, 0],
+                                        _grip((5, 10))[None], np.zeros(3), short[None], gt[None])
+    np.testing.assert_allclose(err["rotation_deg"], [20.0], atol=1e-4)
 
 
 def test_diagnose_counts_failures_by_mode():
