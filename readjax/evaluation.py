@@ -101,11 +101,12 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(), "commit": provenance.commit(),
     }
-    # every failure by mode (unreachable, gripper sequence, missed grasp, depth, ..., task failure)
+    # every failure by mode (unreachable, gripper sequence, wrong place, depth, ..., task failure)
     result["failures"] = failure_modes.diagnose(
         plan["motion"], (plan["positions"], plan["rotations"]), ds.motion, (gt_pos, gt_rot),
         np.asarray(planner.camera.cam_to_world)[:3, 3], res["success"], res["aborted"], res["failure"],
-        res["held"] if env.graspable else None)
+        res["held"] if env.graspable else None,
+        start_pos=retrieved_pos if planner.model.uses_retrieval or cfg.retrieval == "cheat" else None)
     marks = scene_landmarks(env, scenes)
     if marks:  # where each plan ended: failures counted by the object they went for
         result["end_points"] = failure_modes.summarise(plan["positions"][:, -1], marks, res["success"])

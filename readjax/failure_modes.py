@@ -90,21 +90,26 @@ def bucket_rank(label: str, bins=START_BINS_M) -> int:
 # Failure modes of any task, from the plan, its ground truth and the executed rollout
 
 KEYFRAME_TOL_M = 0.02  # a key frame planned farther than this from the ground truth's is "off"
+WRONG_PLACE_M = 0.10  # ... and farther than this, the plan went somewhere else (not a precision error)
 KEYFRAME_TOL_DEG = 10.0  # ... or turned more than this away from it
-# causes before consequences: a plan whose key frames are off explains a task failure that follows
-MODES = ("unreachable", "gripper sequence", "missed grasp", "depth", "image position", "orientation",
-         "task failure", "near miss")
+# causes before consequences: a plan whose key frames are off explains the missed grasp or task
+# failure that follows
+MODES = ("unreachable", "gripper sequence", "wrong place", "depth", "image position", "orientation",
+         "missed grasp", "task failure", "near miss")
 MODE_HELP = {
     "unreachable": "IK could not reach more than the allowed number of waypoints: the episode aborted",
     "gripper sequence": "the plan closes the gripper a different number of times than the demonstration",
-    "missed grasp": "the plan closes the gripper as often as the demonstration but never holds an object",
-    "depth": "a key frame is off by more than the position tolerance, mostly along the camera's ray",
-    "image position": "a key frame is off by more than the position tolerance, mostly across the image",
+    "wrong place": "a key frame more than 10 cm off: the plan went for another place (a distractor, or "
+                   "where the retrieved demonstration's object was), not a matter of precision",
+    "depth": "a key frame off by more than the position tolerance, mostly along the camera's ray",
+    "image position": "a key frame off by more than the position tolerance, mostly across the image",
     "orientation": "key frames in place, but the approach axis tilted or the turn between two key frames "
                    "off by more than the rotation tolerance (a constant yaw offset does not count)",
+    "missed grasp": "key frames in place and the gripper closes as in the demonstration, but it never holds "
+                    "an object",
     "task failure": "key frames in place, but the task's own failure condition fired between them "
                     "(e.g. the wire touched, a cap lifted before it was unscrewed)",
-    "near miss": "every key frame within the tolerances and no failure condition: the motion between them failed",
+    "near miss": "none of the above: the motion between the key frames, or the last centimetres, failed",
 }
 
 
@@ -171,7 +176,8 @@ def keyframe_errors(plan_pos: np.ndarray, gt_pos: np.ndarray, gt_grip: np.ndarra
 
 
 def classify(success, aborted, failure, plan_closings, gt_closings, held, errors: dict[str, np.ndarray],
-             tol: float = KEYFRAME_TOL_M, tol_deg: float = KEYFRAME_TOL_DEG) -> list[str | None]:
+             tol: float = KEYFRAME_TOL_M, tol_deg: float = KEYFRAME_TOL_DEG,
+             wrong_place: float = WRONG_PLACE_M) -> list[str | None]:
     """Each episode's failure mode (:data:`MODES`, the first that applies, in that order), None for a
     success. ``held``: (B,) whether the rollout ever held an object, or None for a task without
     graspable objects (then no failure is a missed grasp)."""
@@ -183,12 +189,14 @@ def classify(success, aborted, failure, plan_closings, gt_closings, held, errors
             modes.append("unreachable")
         elif plan_closings[b] != gt_closings[b]:
             modes.append("gripper sequence")
-        elif held is not None and gt_closings[b] > 0 and not held[b]:
-            modes.append("missed grasp")
+        elif errors["error"][b] > wrong_place:
+            modes.append("wrong place")
         elif errors["error"][b] > tol:
             modes.append("depth" if errors["depth"][b] > errors["lateral"][b] else "image position")
         elif errors["rotation_deg"][b] > tol_deg:
             modes.append("orientation")
+        elif held is not None and gt_closings[b] > 0 and not held[b]:
+            modes.append("missed grasp")
         elif failure[b]:
             modes.append("task failure")
         else:
@@ -197,28 +205,39 @@ def classify(success, aborted, failure, plan_closings, gt_closings, held, errors
 
 
 def diagnose(plan_motion: np.ndarray, plan_pose: tuple, gt_motion: np.ndarray, gt_pose: tuple,
-             cam_origin: np.ndarray, success, aborted, failure, held, tol: float = KEYFRAME_TOL_M,
-             tol_deg: float = KEYFRAME_TOL_DEG) -> dict:
-    """What an evaluation records to explain its failures: per episode the failure mode, the plan's
-    and the demonstration's gripper closings and the worst key-frame errors (position in cm, total /
-    depth / across the image; rotation in degrees); the failures counted by mode; and the median
-    worst key-frame position error of the episodes that succeeded and of those that failed.
+             cam_origin: np.ndarray, success, aborted, failure, held, start_pos: np.ndarray | None = None,
+             tol: float = KEYFRAME_TOL_M, tol_deg: float = KEYFRAME_TOL_DEG) -> dict:
+    """What an evaluation records to explain its failures. Per episode: the measurements (the plan's
+    and the demonstration's gripper closings, the worst key-frame errors: position in cm, total /
+    depth / across the image, rotation in degrees; whether the rollout aborted, held an object, hit
+    the task's failure condition) and the failure mode they give (:func:`classify`); with
+    ``start_pos`` (world positions (B, T, 3) of the retrieved motions READ refined from) also the
+    start's worst key-frame error, which tells a failure retrieval set up from one refinement made.
+    Summaries: the failures counted by mode, how many failures started a wrong place away, and the
+    median worst key-frame error of the episodes that succeeded and of those that failed.
     ``plan_pose`` / ``gt_pose``: world (positions (B, T, 3), rotations (B, T, 3, 3))."""
-    success = np.asarray(success, bool)
+    success, aborted, failure = (np.asarray(x, bool) for x in (success, aborted, failure))
+    held = None if held is None else np.asarray(held, bool)
     plan_c, gt_c = closings(plan_motion[..., 9]), closings(gt_motion[..., 9])
     err = keyframe_errors(plan_pose[0], gt_pose[0], gt_motion[..., 9], cam_origin, plan_pose[1], gt_pose[1])
-    modes = classify(success, np.asarray(aborted, bool), np.asarray(failure, bool), plan_c, gt_c,
-                     None if held is None else np.asarray(held, bool), err, tol, tol_deg)
+    modes = classify(success, aborted, failure, plan_c, gt_c, held, err, tol, tol_deg)
     counts = Counter(m for m in modes if m is not None)
     cm = lambda x: np.round(100 * np.asarray(x), 2).tolist()  # noqa: E731
     median = lambda mask: float(np.round(100 * np.median(err["error"][mask]), 2)) if mask.any() else None  # noqa: E731
-    return {
-        "tolerance_cm": 100 * tol, "tolerance_deg": tol_deg,
+    out = {
+        "tolerance_cm": 100 * tol, "tolerance_deg": tol_deg, "wrong_place_cm": 100 * WRONG_PLACE_M,
         "mode": modes,
         "plan_closings": plan_c.astype(int).tolist(), "gt_closings": gt_c.astype(int).tolist(),
         "keyframe_error_cm": cm(err["error"]), "keyframe_depth_cm": cm(err["depth"]),
         "keyframe_lateral_cm": cm(err["lateral"]), "keyframe_frame": err["frame"].astype(int).tolist(),
         "keyframe_rotation_deg": np.round(err["rotation_deg"], 1).tolist(),
+        "aborted": aborted.astype(int).tolist(), "task_failure": failure.astype(int).tolist(),
+        "held": None if held is None else held.astype(int).tolist(),
         "counts": {m: counts[m] for m in MODES if counts[m]},
         "median_keyframe_error_cm": {"succeeded": median(success), "failed": median(~success)},
     }
+    if start_pos is not None:
+        start = keyframe_errors(start_pos, gt_pose[0], gt_motion[..., 9], cam_origin)["error"]
+        out["start_keyframe_error_cm"] = cm(start)
+        out["failed_from_a_wrong_start"] = int(np.sum(~success & (start > WRONG_PLACE_M)))
+    return out

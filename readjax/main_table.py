@@ -151,8 +151,9 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
 
 def failure_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
     """The rows' failures per task counted by mode (the evaluation's ``failures`` record, see
-    :mod:`readjax.failure_modes`), with the median worst key-frame error of failed and of
-    successful episodes; tasks whose evaluation predates the record are left out."""
+    :mod:`readjax.failure_modes`); for a method that refines a retrieved motion, how many failures
+    started from a retrieval a wrong place away; and the median worst key-frame error of failed
+    and of successful episodes. Tasks whose evaluation predates the record are left out."""
     body = []
     for code in tasks.AVG16:
         for label, by_task in rows.items():
@@ -163,17 +164,22 @@ def failure_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
             med = f["median_keyframe_error_cm"]
             fmt = lambda x: "–" if x is None else f"{x:.1f}"  # noqa: E731
             failed = len(r["success"]) - sum(r["success"])
+            wrong_start = f.get("failed_from_a_wrong_start")
             body.append(f"| {code} | {label} | {failed} | " + " | ".join(str(f["counts"].get(m, 0) or "")
-                        for m in failure_modes.MODES) + f" | {fmt(med['failed'])} / {fmt(med['succeeded'])} |")
+                        for m in failure_modes.MODES) + f" | {'–' if wrong_start is None else wrong_start} | "
+                        f"{fmt(med['failed'])} / {fmt(med['succeeded'])} |")
     if not body:
         return []
-    tol = next(r["failures"]["tolerance_cm"] for by_task in rows.values() for r in by_task.values() if "failures" in r)
+    f0 = next(r["failures"] for by_task in rows.values() for r in by_task.values() if "failures" in r)
     return ["Failures by mode (the first that applies, left to right; key frames: where the demonstration opens "
-            f"or closes the gripper, and its end; a key frame is off beyond {tol:g} cm):", ""] + [
+            f"or closes the gripper, and its end; off: beyond {f0['tolerance_cm']:g} cm or "
+            f"{f0['tolerance_deg']:g} degrees):", ""] + [
             f"- *{m}*: {failure_modes.MODE_HELP[m]}" for m in failure_modes.MODES] + [
-            "", "| task | row | failed | " + " | ".join(failure_modes.MODES)
-            + " | worst key-frame error, cm (median: failed / succeeded) |",
-            "|---" * (len(failure_modes.MODES) + 4) + "|"] + body + [""]
+            f"- *from a wrong start*: failures whose retrieved motion (where refinement started) was already "
+            f"more than {100 * failure_modes.WRONG_PLACE_M:g} cm off at a key frame", "",
+            "| task | row | failed | " + " | ".join(failure_modes.MODES)
+            + " | from a wrong start | worst key-frame error, cm (median: failed / succeeded) |",
+            "|---" * (len(failure_modes.MODES) + 5) + "|"] + body + [""]
 
 
 def training_lines(rows: dict[str, dict[str, dict]]) -> list[str]:

@@ -84,24 +84,24 @@ def test_key_frame_error_splits_depth_from_image_position():
 
 
 def test_failure_modes_truth_table():
-    """The first mode that applies names a failure, in the order of MODES (causes before the task
-    failure they lead to); a success has none."""
-    n = 9
-    success = np.array([1, 0, 0, 0, 0, 0, 0, 0, 0], bool)
-    aborted = np.array([0, 1, 0, 0, 0, 0, 0, 0, 0], bool)
-    failure = np.array([0, 1, 1, 1, 1, 1, 1, 1, 0], bool)  # a failure condition behind most causes
-    plan_c = np.array([1, 2, 2, 1, 1, 1, 1, 1, 1])
+    """The first mode that applies names a failure, in the order of MODES (causes before the missed
+    grasp or task failure they lead to); a success has none."""
+    n = 10
+    success = np.array([1, 0, 0, 0, 0, 0, 0, 0, 0, 0], bool)
+    aborted = np.array([0, 1, 0, 0, 0, 0, 0, 0, 0, 0], bool)
+    failure = np.array([0, 1, 1, 1, 1, 1, 1, 0, 1, 0], bool)  # a failure condition behind most causes
+    plan_c = np.array([1, 2, 2, 1, 1, 1, 1, 1, 1, 1])
     gt_c = np.ones(n, int)
-    held = np.array([1, 1, 1, 0, 1, 1, 1, 1, 1], bool)
-    errors = {"error": np.array([0.1, 0.1, 0.1, 0.1, 0.05, 0.05, 0.01, 0.01, 0.01]),
-              "depth": np.array([0, 0, 0, 0.1, 0.04, 0.01, 0.0, 0.0, 0.0]),
-              "lateral": np.array([0, 0, 0, 0, 0.01, 0.04, 0.01, 0.01, 0.01]),
-              "rotation_deg": np.array([90, 90, 90, 90, 90, 90, 30, 5, 5.0])}
+    held = np.array([1, 0, 0, 0, 0, 0, 0, 0, 1, 1], bool)  # nothing held behind every cause but the last two
+    errors = {"error": np.array([0.3, 0.3, 0.3, 0.3, 0.05, 0.05, 0.01, 0.01, 0.01, 0.01]),
+              "depth": np.array([0, 0, 0, 0, 0.04, 0.01, 0, 0, 0, 0]),
+              "lateral": np.array([0, 0, 0, 0.3, 0.01, 0.04, 0.01, 0.01, 0.01, 0.01]),
+              "rotation_deg": np.array([90, 90, 90, 90, 90, 90, 30, 5, 5, 5.0])}
     modes = failure_modes.classify(success, aborted, failure, plan_c, gt_c, held, errors)
-    assert modes == [None, "unreachable", "gripper sequence", "missed grasp", "depth", "image position",
-                     "orientation", "task failure", "near miss"]
+    assert modes == [None, "unreachable", "gripper sequence", "wrong place", "depth", "image position",
+                     "orientation", "missed grasp", "task failure", "near miss"]
     # a task without graspable objects has no missed grasps
-    assert failure_modes.classify(success, aborted, failure, plan_c, gt_c, None, errors)[3] == "depth"
+    assert failure_modes.classify(success, aborted, failure, plan_c, gt_c, None, errors)[7] == "near miss"
 
 
 def _rz(deg):
@@ -135,13 +135,17 @@ def test_diagnose_counts_failures_by_mode():
     gt_pos = np.zeros((3, t, 3))
     gt_pos[:, :, 0] = 1.0
     plan_pos = gt_pos.copy()
-    plan_pos[2, -1, 0] += 0.1  # a failure 10 cm too deep
+    plan_pos[2, -1, 0] += 0.15  # a failure 15 cm too deep
     motion = np.ones((3, t, 10))
     rot = np.broadcast_to(np.eye(3), (3, t, 3, 3))
+    start = gt_pos.copy()
+    start[1:, -1, 1] += 0.2  # refinement started 20 cm off on episodes 1 and 2
     out = failure_modes.diagnose(motion, (plan_pos, rot), motion, (gt_pos, rot), np.zeros(3), success=[1, 1, 0],
-                                 aborted=[0, 0, 0], failure=[0, 0, 1], held=None)
-    assert out["mode"] == [None, None, "depth"] and out["counts"] == {"depth": 1}
-    assert out["keyframe_error_cm"] == [0.0, 0.0, 10.0] and out["keyframe_depth_cm"][2] == 10.0
-    assert out["median_keyframe_error_cm"] == {"succeeded": 0.0, "failed": 10.0}
+                                 aborted=[0, 0, 0], failure=[0, 0, 1], held=None, start_pos=start)
+    assert out["mode"] == [None, None, "wrong place"] and out["counts"] == {"wrong place": 1}
+    assert out["start_keyframe_error_cm"] == [0.0, 20.0, 20.0] and out["failed_from_a_wrong_start"] == 1
+    assert out["task_failure"] == [0, 0, 1] and out["held"] is None and out["aborted"] == [0, 0, 0]
+    assert out["keyframe_error_cm"] == [0.0, 0.0, 15.0] and out["keyframe_depth_cm"][2] == 15.0
+    assert out["median_keyframe_error_cm"] == {"succeeded": 0.0, "failed": 15.0}
     assert out["keyframe_rotation_deg"] == [0.0, 0.0, 0.0] and out["tolerance_deg"] == 10.0
     assert set(failure_modes.MODE_HELP) == set(failure_modes.MODES)

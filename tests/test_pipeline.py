@@ -165,6 +165,7 @@ def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
     assert [m is None for m in fails["mode"]] == [bool(s) for s in result["success"]]
     assert sum(fails["counts"].values()) == 4 - sum(result["success"]) and "missed grasp" not in fails["counts"]
     assert len(fails["keyframe_error_cm"]) == 4 and fails["gt_closings"] == [0] * 4
+    assert len(fails["start_keyframe_error_cm"]) == 4 and fails["held"] is None  # READ refines a retrieval
     # RT has landmarks: every plan's end point is classified (target or distractor)
     assert len(result["end_points"]["nearest_landmark"]) == 4
     assert set(result["end_points"]["nearest_landmark"]) <= {"target", "distractor"}
