@@ -84,7 +84,8 @@ def main(argv=None) -> int:
             print(f"{'done' if s.done() else 'todo'}  {s.task}: {s.label}")
         return 0
     try:
-        summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True))
+        summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True),
+                                     prior=pipeline.prior_costs(cfg.results))
     except pipeline.PipelineError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

@@ -229,9 +229,26 @@ def copy_results(run: Path, results: Path) -> None:
         shutil.copyfile(f, dest)
 
 
-def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subprocess.run) -> dict:
+def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
+    """Seconds of steps finished before, from every ``<task>/pipeline_timing.json`` under
+    ``results`` (other runs, sessions and machines): {"label": {...}, "kind": {...}}, for the ETA
+    before this run has timed a step of its own."""
+    prior: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}}
+    for f in sorted(Path(results).glob(f"*/{TIMING_FILE}")):
+        try:
+            steps = json.loads(f.read_text())["steps"]
+        except (json.JSONDecodeError, KeyError):
+            continue
+        for label, st in steps.items():
+            prior["label"].setdefault(label, []).append(st["seconds"])
+            prior["kind"].setdefault(st["kind"], []).append(st["seconds"])
+    return prior
+
+
+def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subprocess.run,
+              prior: dict[str, dict[str, list[float]]] | None = None) -> dict:
     """Run the steps not yet done, in order; returns {"ran": k, "skipped": s, "seconds": {...}}.
-    Progress and an ETA (:func:`_eta`) go to ``log``."""
+    Progress and an ETA (:func:`_eta`; ``prior``: :func:`prior_costs`) go to ``log``."""
     todo = [s for s in steps if not s.done()]
     skipped = len(steps) - len(todo)
     log(f"pipeline: {len(steps)} steps, {skipped} already done, {len(todo)} to run")
@@ -239,7 +256,7 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
     by_label: dict[str, list[float]] = {}
     t_start = time.time()
     for k, step in enumerate(todo, 1):
-        eta = _eta(todo[k - 1:], by_label, by_kind)
+        eta = _eta(todo[k - 1:], by_label, by_kind, prior)
         log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
             f"{', ETA ' + _hms(eta) if eta is not None else ''})")
         t0, load = time.time(), _load()
@@ -257,16 +274,27 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
     return {"ran": len(todo), "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
 
 
-def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[str, list[float]]) -> float | None:
-    """Seconds left: each remaining step at the mean time of finished steps with its label (the same
-    step on another task: "train read", "evaluate read --N 100"), else of its kind, else of all
-    steps; so a 35-minute READ training does not price a 7-minute regressor's."""
-    if not by_kind:
+def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[str, list[float]],
+         prior: dict[str, dict[str, list[float]]] | None = None) -> float | None:
+    """Seconds left: each remaining step at the mean time of the finished steps most like it, the
+    first found of: this run's steps with its label (the same step on another task: "train read",
+    "evaluate read --N 100"), earlier runs' with its label (``prior``), this run's of its kind,
+    earlier runs' of its kind, and this run's of any kind. So a 35-minute READ training does not
+    price a 7-minute regressor's, nor one training every verify. None before anything is known."""
+    prior = prior or {"label": {}, "kind": {}}
+    known = [v for v in (*by_kind.values(), *prior["kind"].values()) if v]
+    if not known:
         return None
     mean = lambda v: sum(v) / len(v)  # noqa: E731
-    mean_all = sum(map(sum, by_kind.values())) / sum(map(len, by_kind.values()))
-    return sum(mean(by_label[s.label]) if s.label in by_label else mean(by_kind[s.kind]) if s.kind in by_kind
-               else mean_all for s in remaining)
+    mean_all = mean([x for v in known for x in v])
+
+    def cost(s: Step) -> float:
+        for table, key in ((by_label, s.label), (prior["label"], s.label), (by_kind, s.kind), (prior["kind"], s.kind)):
+            if table.get(key):
+                return mean(table[key])
+        return mean_all
+
+    return sum(cost(s) for s in remaining)
 
 
 def _hms(seconds: float) -> str:

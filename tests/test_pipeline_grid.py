@@ -76,6 +76,10 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert timing["task"] == "reach_target" and len(timing["steps"]) == len(steps) // 2
     assert {st["kind"] for st in timing["steps"].values()} == {"generate", "verify", "train", "evaluate", "media"}
     assert all(st["seconds"] >= 0 and st["cpus"] >= 1 for st in timing["steps"].values())
+    prior = pipeline.prior_costs(tmp_path / "results")  # both tasks' records, for a later run's ETA
+    recorded = [json.loads((tmp_path / "results" / t / "pipeline_timing.json").read_text())["steps"]["train read"]
+                ["seconds"] for t in ("push_button", "reach_target")]
+    assert prior["label"]["train read"] == recorded and len(prior["kind"]["verify"]) == 2
     costs = report.cost_lines(tmp_path / "results")
     assert "| task | generate | verify | train deterministic | train read | evaluate | media | total | cores | load |" in costs
     assert [ln.split(" |")[0] for ln in costs if ln.startswith("| ") and not ln.startswith("| task")] == [
@@ -128,6 +132,10 @@ def test_eta_prices_each_step_by_its_own_label(tmp_path):
     by_kind["train"].append(420.0)
     assert pipeline._eta([read, det], by_label, by_kind) == 2520.0
     assert pipeline._eta([read], {}, {}) is None
+    # earlier runs' timings (results/<task>/pipeline_timing.json) price what this run has not timed yet
+    prior = {"label": {det.label: [400.0, 440.0]}, "kind": {"train": [2000.0, 420.0], "verify": [60.0]}}
+    assert pipeline._eta([read, det], {}, {}, prior) == 1210.0 + 420.0
+    assert pipeline._eta([det], {det.label: [300.0]}, {"train": [300.0]}, prior) == 300.0  # this run first
 
 
 def test_shards_split_the_tasks(tmp_path):
