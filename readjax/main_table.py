@@ -154,6 +154,7 @@ def failure_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
     :mod:`readjax.failure_modes`); for a method that refines a retrieved motion, how many failures
     started from a retrieval a wrong place away; and the median worst key-frame error of failed
     and of successful episodes. Tasks whose evaluation predates the record are left out."""
+    fmt = lambda x: "–" if x is None else f"{x:.1f}"  # noqa: E731
     body = []
     for code in tasks.AVG16:
         for label, by_task in rows.items():
@@ -162,7 +163,6 @@ def failure_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
                 continue
             f = r["failures"]
             med = f["median_keyframe_error_cm"]
-            fmt = lambda x: "–" if x is None else f"{x:.1f}"  # noqa: E731
             failed = len(r["success"]) - sum(r["success"])
             wrong_start = f.get("failed_from_a_wrong_start")
             body.append(f"| {code} | {label} | {failed} | " + " | ".join(str(f["counts"].get(m, 0) or "")

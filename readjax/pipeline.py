@@ -229,16 +229,25 @@ def copy_results(run: Path, results: Path) -> None:
         shutil.copyfile(f, dest)
 
 
-def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
-    """Seconds of steps finished before, from every ``<task>/pipeline_timing.json`` under
-    ``results`` (other runs, sessions and machines): {"label": {...}, "kind": {...}}, for the ETA
-    before this run has timed a step of its own."""
-    prior: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}}
+def timing_records(results: str | Path) -> dict[str, dict[str, dict]]:
+    """Every task's recorded step timings under ``results`` (``<task>/pipeline_timing.json``, see
+    :func:`record_timing`): {task: {label: record}}; unreadable files are skipped."""
+    records = {}
     for f in sorted(Path(results).glob(f"*/{TIMING_FILE}")):
         try:
-            steps = json.loads(f.read_text())["steps"]
+            record = json.loads(f.read_text())
+            records[record["task"]] = record["steps"]
         except (json.JSONDecodeError, KeyError):
             continue
+    return records
+
+
+def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
+    """Seconds of steps finished before (:func:`timing_records`: other runs, sessions and
+    machines): {"label": {...}, "kind": {...}}, for the ETA before this run has timed a step of its
+    own."""
+    prior: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}}
+    for steps in timing_records(results).values():
         for label, st in steps.items():
             prior["label"].setdefault(label, []).append(st["seconds"])
             prior["kind"].setdefault(st["kind"], []).append(st["seconds"])
@@ -268,9 +277,10 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
         if not step.done():
             raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
                                 f"ground truth did not replay at 100 %)")
-        by_kind.setdefault(step.kind, []).append(time.time() - t0)
-        by_label.setdefault(step.label, []).append(time.time() - t0)
-        record_timing(step, time.time() - t0, load)
+        seconds = time.time() - t0
+        by_kind.setdefault(step.kind, []).append(seconds)
+        by_label.setdefault(step.label, []).append(seconds)
+        record_timing(step, seconds, load)
     return {"ran": len(todo), "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
 
 

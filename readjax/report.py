@@ -16,6 +16,7 @@ import numpy as np
 from readjax import failure_modes, tasks
 from readjax.config import field_defaults
 from readjax.evaluation import EvalConfig
+from readjax.pipeline import timing_records
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
 
@@ -155,13 +156,7 @@ def cost_lines(runs_root: str | Path) -> list[str]:
     """The pipeline's wall clock per task (``<task>/pipeline_timing.json``, written by
     ``experiments.pipeline``): minutes per step group and in all, with the machine's load when the
     steps started (timings beside another job are not idle-machine timings)."""
-    records = {}
-    for f in sorted(Path(runs_root).glob("*/pipeline_timing.json")):
-        try:
-            record = json.loads(f.read_text())
-            records[record["task"]] = record["steps"]
-        except (json.JSONDecodeError, KeyError):
-            continue
+    records = timing_records(runs_root)
     if not records:
         return []
 
