@@ -5,12 +5,14 @@ guard evaluation runs), converts each recorded motion to world poses, solves IK,
 MJX in the episode's stored scene and applies the task's predicate: the path a planner's motions
 take in `experiments.evaluate`. The ground truth must succeed 100 %; anything less means an
 evaluation on this split would not measure what it says. Prints the success rate, writes a JSON
-(default DATA/<task>/<split>/verify.json) and exits with status 1 below --min.
+(default DATA/<task>/<split>/verify.json) and exits with status 1 below --min. With --results DIR the
+record is also kept as DIR/<task>/verify/<split>_<fingerprint>.json: one per version of the split
+(its content hash), which the pipeline and `experiments.report` match to the evaluations that ran on it.
 
 examples:
   python -m experiments.verify --task push_button --data data/
   python -m experiments.verify --task RT --data data/ --split train --episodes 50 --min 100
-  python -m experiments.verify --task PB --data data/ --out results/push_button/verify_test.json
+  python -m experiments.verify --task PB --data data/ --results results/   # commit results/push_button/verify/
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--min", type=float, default=100.0, help="lowest acceptable success, percent")
     p.add_argument("--batch-size", type=_cli.positive_int, default=32, help="episodes executed together")
     p.add_argument("--out", default=None, help="JSON path (default DATA/<task>/<split>/verify.json)")
+    p.add_argument("--results", default=None,
+                   help="also keep the record as RESULTS/<task>/verify/<split>_<fingerprint>.json (commit it)")
     return p
 
 
@@ -40,7 +44,7 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     if not 0.0 <= args.min <= 100.0:
         raise ValueError(f"--min is a percentage in [0, 100], got {args.min}")
-    from readjax import tasks
+    from readjax import tasks, verification
     from readjax.data import store
     from readjax.evaluation import replay_ground_truth
 
@@ -52,6 +56,9 @@ def main(argv=None) -> int:
     out = Path(args.out) if args.out else split_dir / "verify.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
+    if args.results:
+        kept = verification.write(args.results, dict(result, data=str(split_dir)))
+        out = f"{out} and {kept}"
     pct = 100.0 * result["success_rate"]
     print(f"{task} ({result['code']}) {args.split}: ground truth replayed {result['successes']}/{result['episodes']} "
           f"= {pct:.1f} %; results in {out}")

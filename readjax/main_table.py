@@ -17,7 +17,8 @@ from pathlib import Path
 
 from readjax import failure_modes, paper, tasks
 from readjax.config import preset
-from readjax.report import bar_chart, eval_config_of, mcnemar_p, paired_outcomes, protocol, with_defaults
+from readjax.report import bar_chart, mcnemar_p, paired_outcomes
+from readjax.result_record import is_direct_eval, is_spe_eval
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
 
@@ -26,21 +27,6 @@ def refinement_of(preset_name: str) -> tuple[str, int]:
     """(update, rounds): the refinement a preset's READ plans with."""
     sde = preset(preset_name)["sde"]
     return sde.update, sde.rounds
-
-
-def is_read_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
-    """Whether ``r`` is a clean-image SPE top-1 evaluation at N = ``n`` with one candidate and, for
-    n > 0, the refinement ``(update, rounds)`` (an evaluation that predates a field ran with that
-    field's old default, which its run's configs then also hold)."""
-    cfg = eval_config_of(r)
-    if protocol(r) != "main" or cfg["retrieval"] != "spe" or cfg["rank"] != 1 or cfg["candidates"] != 1:
-        return False
-    if cfg["N"] != n:
-        return False
-    if n == 0:
-        return True
-    sde = with_defaults(r.get("configs") or {"sde": {}}).get("sde", {})
-    return (cfg.get("refine_update", sde.get("update")), cfg["rounds"]) == tuple(refinement)
 
 
 def select(results: list[dict], read_run: str, det_run: str,
@@ -52,11 +38,11 @@ def select(results: list[dict], read_run: str, det_run: str,
     for r in sorted(results, key=lambda r: r["_file"]):
         run = r["_run_name"]
         row = None
-        if run == read_run and is_read_eval(r, 100, refinement):
+        if run == read_run and is_spe_eval(r, 100, refinement):
             row = READ_ROW
-        elif run == read_run and is_read_eval(r, 0, refinement):
+        elif run == read_run and is_spe_eval(r, 0, refinement):
             row = RETRIEVAL_ROW
-        elif run == det_run and protocol(r) == "main" and r.get("name") == "direct":
+        elif run == det_run and is_direct_eval(r):
             row = DET_ROW
         if row is None:
             continue
@@ -124,9 +110,20 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
            "tasks are measured; `Avg (k)` is the mean over the k tasks READ has been measured on, the paper's "
            "row over the same tasks.", "",
            "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    unverified = {(key, tasks.code_of(t)) for key, by_task in rows.items() for t, r in by_task.items()
+                  if not r.get("_verified", False)}
     for key, r in table.items():
-        out.append(f"| {labels[key]} | " + " | ".join(f"{r[c]:.1f}" if c in r else "–" for c in cols) + " |")
+        out.append(f"| {labels[key]} | " + " | ".join(
+            (f"{r[c]:.1f}" + ("‡" if (key, c) in unverified else "")) if c in r else "–" for c in cols) + " |")
     out.append("")
+    if unverified:
+        out += ["‡ ran on a test split with no 100 % ground-truth replay on record (`results/<task>/verify/"
+                "test_<fingerprint>.json`, written by `experiments.verify --results`): not a result until it has one: "
+                + ", ".join(f"{labels[k].split(':')[0]} {c}" for k, c in sorted(unverified)) + ".", ""]
+    else:
+        out += ["Every cell ran on a test split whose own ground truth replayed at 100 % through the evaluation "
+                "path (records: `results/<task>/verify/test_<fingerprint>.json`, matched by the split's content "
+                "hash).", ""]
     if chart is not None:
         bar_chart({labels[k].replace("`", ""): v for k, v in table.items()}, chart)
         out += [f"![main table]({chart.name})", ""]

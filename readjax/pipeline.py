@@ -4,8 +4,12 @@ Each step is one existing command (``experiments.generate``, ``verify``, ``train
 run as a subprocess, and each has a test for "done" on disk, so running the grid again skips what
 is finished and a kill loses at most the step in progress (the commands resume themselves too).
 A test split must replay its ground truth at 100 % before anything is trained on its task: a
-number from a split that does not is not a result. Finished evaluations are copied to
-``results/<task>/<run>/eval/<name>.json``, which ``experiments.report --runs results/`` reads.
+number from a split that does not is not a result. The replay is recorded per version of the split
+(``results/<task>/verify/test_<fingerprint>.json``, see ``readjax.verification``). Finished
+evaluations are copied to ``results/<task>/<run>/eval/<name>.json``, which ``experiments.report
+--runs results/`` reads, and an evaluation counts as done when ``results/`` holds it on a split whose
+replay is on record: so a fresh machine with only the committed ``results/`` skips every finished
+evaluation, and generates, verifies and trains only what an unfinished one needs.
 READ's first few test episodes at its largest N are evaluated once more, apart, to render them: the
 overlay of retrieved / planned / ground-truth motions and a rollout video go to
 ``results/<task>/<run>/media/`` (the report shows them); their outcomes must equal the 100-episode
@@ -25,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from readjax import methods, tasks
+from readjax import methods, result_record, tasks, verification
 
 
 class PipelineError(RuntimeError):
@@ -87,55 +91,101 @@ def _summary_kept(split_dir: Path) -> int:
     return json.loads(f.read_text()).get("episodes_kept", 0) if f.exists() else 0
 
 
-def eval_args(method: str, read_n) -> list[list[str]]:
-    """The evaluations of a method (extra ``experiments.evaluate`` arguments; the command names
-    the result): READ at each N, the others once with their defaults."""
+def eval_args(method: str, read_n) -> list[tuple[int | None, list[str]]]:
+    """The evaluations of a method: (N, extra ``experiments.evaluate`` arguments); the command
+    names the result. READ at each N, the others once with their defaults (N None)."""
     if method == "read":
-        return [["--N", str(n)] for n in read_n]
-    return [[]]
+        return [(n, ["--N", str(n)]) for n in read_n]
+    return [(None, [])]
+
+
+_FINGERPRINTS: dict[tuple, str] = {}  # (split, episodes, summary mtime) -> content hash
+
+
+def split_fingerprint(split_dir: Path, episodes: int) -> str | None:
+    """The content hash of the first ``episodes`` of the split in ``split_dir`` on this machine (what
+    an evaluation of them records as ``test_fingerprint``); None while the split is not complete."""
+    summary = split_dir / "summary.json"
+    if _summary_kept(split_dir) < episodes:
+        return None
+    key = (str(split_dir.resolve()), episodes, summary.stat().st_mtime_ns)
+    if key not in _FINGERPRINTS:
+        from readjax.data import store
+        _FINGERPRINTS[key] = store.load_dataset(split_dir, limit=episodes).fingerprint
+    return _FINGERPRINTS[key]
+
+
+def finished_evaluation(results: Path, task: str, run_name: str, method: str, n: int | None,
+                        episodes: int) -> Path | None:
+    """The evaluation a step asks for, if ``results/<task>/<run>/eval/`` holds it: ``method``'s
+    default evaluation at N = ``n`` (``result_record.is_default_eval``) over ``episodes`` test
+    episodes, on a test split whose ground-truth replay is on record at 100 %."""
+    for f in sorted((results / task / run_name / "eval").glob("*.json")):
+        try:
+            r = json.loads(f.read_text())
+        except json.JSONDecodeError:
+            continue
+        if (r.get("task") == task and r.get("episodes") == episodes and result_record.is_default_eval(r, method, n)
+                and verification.evaluation_verified(results, r)):
+            return f
+    return None
 
 
 def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
-    """The grid's steps in order, this shard's tasks only."""
+    """The grid's steps in order, this shard's tasks only. A step that only feeds others (generate,
+    verify, train) also counts as done once everything it feeds is: a task whose evaluations and
+    media are all in ``results/`` needs no dataset, replay or checkpoint on this machine."""
     data, runs, results = Path(cfg.data), Path(cfg.runs), Path(cfg.results)
     i, n = cfg.shard
     steps: list[Step] = []
     for task in cfg.tasks[i::n]:
+        prepare: list[Step] = []  # the task's datasets and their replay
         for split, count in (("test", cfg.test_episodes), ("train", cfg.train_episodes)):
             d = data / task / split
-            steps.append(Step("generate", task, f"generate {split} {count}", [
+            prepare.append(Step("generate", task, f"generate {split} {count}", [
                 python, "-m", "experiments.generate", "--task", task, "--split", split, "--episodes", str(count),
                 "--batch-size", str(cfg.gen_batch), "--image-size", str(cfg.image_size), "--out", str(data),
                 "--quiet"], done=lambda d=d, c=count: _summary_kept(d) >= c))
             if split == "test":
-                out = results / task / "verify_test.json"
-                steps.append(Step("verify", task, "verify test (ground truth replay = 100 %)", [
-                    python, "-m", "experiments.verify", "--task", task, "--data", str(data), "--out", str(out),
-                    "--min", "100"], done=lambda out=out, c=count: _verified(out, c)))
+                prepare.append(Step("verify", task, "verify test (ground truth replay = 100 %)", [
+                    python, "-m", "experiments.verify", "--task", task, "--data", str(data), "--episodes", str(count),
+                    "--results", str(results), "--min", "100"],
+                    done=lambda d=d, c=count, task=task: verification.is_verified(
+                        results, task, split_fingerprint(d, c), c)))
+        steps += prepare
+        outputs: list[Step] = []  # the task's evaluations and media: what the rest is for
         for method in cfg.methods:
             run = runs / task / cfg.run_name(method)
             marker = run / "pipeline_trained.json"
             sets = sum((["--set", s] for s in cfg.overrides), [])
-            steps.append(Step("train", task, f"train {method}", [
+            train = Step("train", task, f"train {method}", [
                 python, "-m", "experiments.train", "--task", task, "--model", method, "--name", run.name,
                 "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"] + sets, done=marker.exists,
-                after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()}))))
-            for extra in eval_args(method, cfg.read_N):
+                after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
+            uses: list[Step] = []
+            for n, extra in eval_args(method, cfg.read_N):
                 argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", str(data),
                         "--episodes", str(cfg.test_episodes), "--videos", "0", "--quiet"] + extra
-                entry = " ".join(argv[3:])  # the command without the interpreter: the ledger's key
-
-                def record(run=run, entry=entry):
-                    _ledger_add(run, entry)
-                    copy_results(run, results)
-
-                steps.append(Step("evaluate", task, f"evaluate {method} {' '.join(extra) or ''}".strip(), argv,
-                                  done=lambda run=run, entry=entry: entry in _ledger(run), after=record))
+                uses.append(Step("evaluate", task, f"evaluate {method} {' '.join(extra) or ''}".strip(), argv,
+                                 done=lambda task=task, run=run, method=method, n=n: finished_evaluation(
+                                     results, task, run.name, method, n, cfg.test_episodes) is not None,
+                                 after=lambda run=run: copy_results(run, results)))
             if method == "read" and cfg.media_episodes and max(cfg.read_N) > 0:
-                steps.append(media_step(cfg, task, run, python))
+                uses.append(media_step(cfg, task, run, python))
+            _needed_only_by(train, uses)
+            steps += [train] + uses
+            outputs += uses
+        for step in prepare:
+            _needed_only_by(step, outputs)
     for s in steps:
         s.timing = results / s.task / TIMING_FILE
     return steps
+
+
+def _needed_only_by(step: Step, users: list[Step]) -> None:
+    """Make ``step`` count as done also when every step that uses its output is done."""
+    own = step.done
+    step.done = lambda: own() or (bool(users) and all(u.done() for u in users))
 
 
 TIMING_FILE = "pipeline_timing.json"
@@ -195,30 +245,11 @@ def check_media(media: Path, eval_dir: Path) -> None:
         full_file = eval_dir / f.name
         if "seeds" not in shown or not full_file.exists():
             continue
-        full = json.loads(full_file.read_text())
-        by_seed = dict(zip(full.get("seeds", []), full.get("success", [])))
+        by_seed = result_record.by_seed(json.loads(full_file.read_text()))
         differ = [s for s, ok in zip(shown["seeds"], shown["success"]) if s in by_seed and by_seed[s] != ok]
         if differ:
             raise PipelineError(f"{f.name}: seeds {differ} succeed in one evaluation and fail in the other "
                                 f"({media} against {eval_dir}): an episode's outcome depends on its batch")
-
-
-def _verified(path: Path, count: int) -> bool:
-    if not path.exists():
-        return False
-    r = json.loads(path.read_text())
-    return r.get("episodes", 0) >= count and r.get("success_rate") == 1.0
-
-
-def _ledger(run: Path) -> list[str]:
-    """The evaluations the pipeline ran on a run (``pipeline_evals.json``): the evaluate command picks
-    its result's name from the trained model, so the pipeline records what it ran instead."""
-    f = run / "pipeline_evals.json"
-    return json.loads(f.read_text()) if f.exists() else []
-
-
-def _ledger_add(run: Path, entry: str) -> None:
-    (run / "pipeline_evals.json").write_text(json.dumps(_ledger(run) + [entry], indent=1))
 
 
 def copy_results(run: Path, results: Path) -> None:

@@ -3,7 +3,6 @@ Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenan
 
 from __future__ import annotations
 
-import dataclasses
 import fnmatch
 import json
 import re
@@ -13,29 +12,11 @@ from typing import Callable
 
 import numpy as np
 
-from readjax import failure_modes, tasks
-from readjax.config import field_defaults
-from readjax.evaluation import EvalConfig
+from readjax import failure_modes, tasks, verification
 from readjax.pipeline import timing_records
+from readjax.result_record import PROTOCOLS, by_seed, eval_config_of, protocol, with_defaults
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
-
-
-PROTOCOLS = {  # protocol -> heading of its table
-    "main": "Methods x tasks (SPE retrieval where the method retrieves, clean test images)",
-    "oracle": "Oracle retrieval of the i-th nearest neighbour (Tables 4, 5 and 8: cheat<i>_N<N>)",
-    "perturbed": "Perturbed test images (Table 9)",
-}
-
-
-def protocol(r: dict) -> str:
-    """Which of the paper's experiment protocols an evaluation belongs to (see ``PROTOCOLS``)."""
-    cfg = r.get("eval_config", {})
-    if cfg.get("image_noise", 0.0) or cfg.get("brightness", 1.0) != 1.0:
-        return "perturbed"
-    if cfg.get("retrieval") == "cheat":
-        return "oracle"
-    return "main"
 
 
 def run_label(run_dir: Path, runs_root: Path, task: str) -> str:
@@ -64,6 +45,7 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
         if any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in exclude):
             continue
         r["_run_name"] = label
+        r["_verified"] = verification.evaluation_verified(root, r)  # its test split replayed 100 % (on record here)
         r["_sweep_cell"] = str(r.get("name", "")).startswith(CELL_PREFIX)  # shown in its sweep's table only
         r["_file"] = str(f)
         out.append(r)
@@ -220,14 +202,10 @@ def mcnemar_p(a, b) -> float:
     return min(1.0, 2 * tail)
 
 
-def _by_seed(r: dict) -> dict[int, bool]:
-    return dict(zip(r.get("seeds", []), r.get("success", [])))
-
-
 def paired_outcomes(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray] | None:
     """Two results' successes (bool arrays) on the episodes both ran, matched by seed; None when
     they share no episode."""
-    x, y = _by_seed(a), _by_seed(b)
+    x, y = by_seed(a), by_seed(b)
     common = sorted(set(x) & set(y))
     if not common:
         return None
@@ -270,28 +248,6 @@ def comparison_lines(results: list[dict], reference: str) -> list[str]:
              "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     lines += [f"| {label} | " + " | ".join(r.get(c, "–") for c in cols) + " |" for label, r in table.items()]
     return lines + [""]
-
-
-def with_defaults(configs: dict) -> dict:
-    """Recorded configs with every field a run predates filled in at its default (new fields
-    default to the old behaviour), so runs of one recipe recorded by different readjax versions
-    compare equal."""
-    out = {}
-    for section, values in configs.items():
-        if isinstance(values, dict):
-            values = {**field_defaults(section), **values}
-        out[section] = values
-    return out
-
-
-# what an evaluation recorded before an EvalConfig field existed ran with: the field's default, and
-# one refinement round (rounds arrived later; evaluations record the rounds they ran)
-_EVAL_DEFAULTS = {**{f.name: f.default for f in dataclasses.fields(EvalConfig)}, "rounds": 1}
-
-
-def eval_config_of(r: dict) -> dict:
-    """The evaluation settings a result ran with, fields it predates at what they then were."""
-    return {**_EVAL_DEFAULTS, **(r.get("eval_config") or {})}
 
 
 def training_group(r: dict) -> str | None:

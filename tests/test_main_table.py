@@ -7,7 +7,7 @@ import pytest
 
 from experiments import _cli
 from experiments import report as report_cli
-from readjax import paper, tasks
+from readjax import paper, tasks, verification
 from readjax.config import preset
 
 
@@ -27,6 +27,7 @@ def _write(root, task, run, name, success, method="read", **eval_config):
            "rounds": sde.rounds, "refine_update": sde.update, **eval_config}
     (d / f"{name}.json").write_text(json.dumps({
         "task": task, "method": method, "name": name, "success_rate": sum(success) / len(success),
+        "episodes": len(success), "test_fingerprint": f"fp-{task}",
         "seeds": list(range(len(success))), "success": success, "eval_config": cfg,
         "configs": {"sde": {"update": "cold", "rounds": 1}}}))  # trained under an older preset
 
@@ -46,13 +47,17 @@ def test_main_table_picks_the_preset_refinement_and_pairs_rows(tmp_path, capsys)
     f = runs / "push_button" / "read_a" / "eval" / "spe_N100_now.json"
     f.write_text(json.dumps(dict(json.loads(f.read_text()), training={
         "vae": {"steps": 3000, "stop": {"reason": "step cap"}}, "read": {"steps": 2250, "stop": {"reason": "converged"}}})))
+    # RT's test split replayed at 100 % on record; PB's has no record, so its cell is marked
+    verification.write(runs, {"task": "reach_target", "split": "test", "dataset_fingerprint": "fp-reach_target",
+                              "episodes": 10, "success_rate": 1.0})
     out = tmp_path / "docs" / "results.md"
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det_a"]) == 0
     text = out.read_text()
     section = text.split("## Main table")[1].split("## Methods x tasks")[0]
     head = "| method | " + " | ".join(tasks.AVG16) + " | Avg12 | Avg16 | Avg (2) |"
     assert head in section
-    assert "| READ (N=100): `read_a` | – | 90.0 | 100.0 | – | – |" in section  # the paper's column order
+    assert "| READ (N=100): `read_a` | – | 90.0 | 100.0‡ | – | – |" in section  # the paper's column order
+    assert "not a result until it has one: READ (N=100) PB." in section
     assert section.count("| retrieval only (N=0): `read_a` | – | 30.0 | – |") == 1
     assert "| Deterministic: `det_a` | – | 50.0 | – |" in section
     assert "| – | – | 95.0 |" in section  # READ: no Avg12 / Avg16 yet, mean over RT and PB
@@ -74,8 +79,13 @@ def test_a_second_qualifying_evaluation_is_noted_not_mixed(tmp_path):
     out = tmp_path / "results.md"
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
     section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
-    assert "| READ (N=100): `read_a` | – | 100.0 |" in section
+    assert "| READ (N=100): `read_a` | – | 100.0‡ |" in section  # no replay record under this root
     assert "b_second.json` also qualifies" in section
+    verification.write(runs, {"task": "reach_target", "split": "test", "dataset_fingerprint": "fp-reach_target",
+                              "episodes": 4, "success_rate": 1.0})
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
+    section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
+    assert "| READ (N=100): `read_a` | – | 100.0 |" in section and "Every cell ran on a test split" in section
 
 
 def test_reads_rendered_episodes_are_shown_for_the_cell_they_belong_to(tmp_path):

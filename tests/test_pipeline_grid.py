@@ -10,7 +10,7 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import pipeline, report
+from readjax import pipeline, report, verification
 
 
 def _cfg(tmp_path, **kw):
@@ -19,11 +19,23 @@ def _cfg(tmp_path, **kw):
     return pipeline.PipelineConfig(**{**base, **kw}).validate()
 
 
-class FakeRunner:
-    """Stands in for the commands: writes what each would write, records the calls."""
+@pytest.fixture(autouse=True)
+def _fingerprint_from_summary(monkeypatch):
+    """The fake datasets hold no episodes: a split's content hash is read from its summary.json."""
+    def fingerprint(split_dir, episodes):
+        f = Path(split_dir) / "summary.json"
+        return json.loads(f.read_text())["fingerprint"] if pipeline._summary_kept(split_dir) >= episodes else None
 
-    def __init__(self, verify_rate=1.0, media_outcome=1):
-        self.calls, self.verify_rate, self.media_outcome = [], verify_rate, media_outcome
+    monkeypatch.setattr(pipeline, "split_fingerprint", fingerprint)
+
+
+class FakeRunner:
+    """Stands in for the commands: writes what each would write, records the calls. ``machine``
+    enters every dataset's content hash, as float rounding does on a real machine."""
+
+    def __init__(self, verify_rate=1.0, media_outcome=1, machine="a"):
+        self.calls, self.verify_rate, self.media_outcome, self.machine = [], verify_rate, media_outcome, machine
+        self.methods = {}
 
     def __call__(self, argv):
         mod = argv[2].split(".")[1]
@@ -32,20 +44,32 @@ class FakeRunner:
         if mod == "generate":
             d = Path(arg("--out")) / arg("--task") / arg("--split")
             d.mkdir(parents=True, exist_ok=True)
-            (d / "summary.json").write_text(json.dumps({"episodes_kept": int(arg("--episodes"))}))
+            (d / "summary.json").write_text(json.dumps({"episodes_kept": int(arg("--episodes")),
+                                                        "fingerprint": f"{self.machine}-{arg('--split')}"}))
         elif mod == "verify":
-            Path(arg("--out")).parent.mkdir(parents=True, exist_ok=True)
-            Path(arg("--out")).write_text(json.dumps({"episodes": 4, "success_rate": self.verify_rate}))
+            task = arg("--task")
+            fp = json.loads((Path(arg("--data")) / task / "test" / "summary.json").read_text())["fingerprint"]
+            verification.write(arg("--results"), {"task": task, "split": "test", "dataset_fingerprint": fp,
+                                                  "episodes": int(arg("--episodes")), "success_rate": self.verify_rate})
         elif mod == "train":
-            (Path(arg("--out")) / arg("--task") / arg("--name")).mkdir(parents=True, exist_ok=True)
+            run = Path(arg("--out")) / arg("--task") / arg("--name")
+            run.mkdir(parents=True, exist_ok=True)
+            self.methods[str(run)] = arg("--model")
         elif mod == "evaluate":
-            ev = Path(arg("--out")) if "--out" in argv else Path(arg("--run")) / "eval"
+            run = Path(arg("--run"))
+            ev = Path(arg("--out")) if "--out" in argv else run / "eval"
             ev.mkdir(parents=True, exist_ok=True)
-            name = f"spe_N{arg('--N')}" if "--N" in argv else "direct"
+            method, n = self.methods[str(run)], int(arg("--N")) if "--N" in argv else None
+            name = f"spe_N{n}" if n is not None else "direct"
             k = int(arg("--episodes"))
             ok = self.media_outcome if "--out" in argv else 1
-            (ev / f"{name}.json").write_text(json.dumps({"seeds": list(range(1000000, 1000000 + k)),
-                                                         "success": [ok] * k}))
+            fp = json.loads((Path(arg("--data")) / run.parent.name / "test" / "summary.json").read_text())["fingerprint"]
+            (ev / f"{name}.json").write_text(json.dumps({
+                "task": run.parent.name, "method": method, "name": name, "episodes": k, "test_fingerprint": fp,
+                "eval_config": {"episodes": k, "N": n, "retrieval": "spe", "rank": 1, "candidates": 1, "rounds": 1,
+                                "refine_update": "renoise" if method == "read" else None},
+                "configs": {"sde": {"update": "renoise", "rounds": 1}} if method == "read" else {},
+                "seeds": list(range(1000000, 1000000 + k)), "success": [ok] * k}))
             (ev / f"{name}_overlay.png").write_bytes(b"png")
             if int(arg("--videos")):
                 (ev / f"{name}_rollouts.mp4").write_bytes(b"mp4")
@@ -87,6 +111,47 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     again = FakeRunner()
     assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
     assert again.calls == []
+    # each version of a split keeps its replay record, named by its content hash
+    assert (tmp_path / "results" / "push_button" / "verify" / "test_a-test.json").exists()
+
+
+def test_a_fresh_machine_needs_only_the_results(tmp_path):
+    """With datasets and runs gone (another machine, the committed results/ only), the grid is done;
+    with one evaluation missing, it regenerates, re-verifies and retrains only what that one needs."""
+    import shutil
+
+    cfg = _cfg(tmp_path)
+    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    shutil.rmtree(tmp_path / "data")
+    shutil.rmtree(tmp_path / "runs")
+    fresh = FakeRunner(machine="b")
+    assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=fresh)["ran"] == 0
+    (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").unlink()
+    steps = pipeline.plan_steps(cfg)
+    assert [(s.task, s.label) for s in steps if not s.done()] == [
+        ("push_button", "generate test 4"), ("push_button", "verify test (ground truth replay = 100 %)"),
+        ("push_button", "generate train 8"), ("push_button", "train deterministic"),
+        ("push_button", "evaluate deterministic")]
+    pipeline.run_steps(steps, log=lambda m: None, runner=fresh)
+    assert [m for m, _ in fresh.calls] == ["generate", "verify", "generate", "train", "evaluate"]
+    # machine b's split has its own replay record beside machine a's
+    assert sorted(f.name for f in (tmp_path / "results" / "push_button" / "verify").iterdir()) == [
+        "test_a-test.json", "test_b-test.json"]
+
+
+def test_an_evaluation_counts_only_on_a_verified_split(tmp_path):
+    """An evaluation in results/ whose test split has no 100 % replay on record is not done: the
+    grid verifies the split here and evaluates again."""
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("deterministic",))
+    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    record = tmp_path / "results" / "reach_target" / "verify" / "test_a-test.json"
+    record.unlink()
+    assert [s.label for s in pipeline.plan_steps(cfg) if not s.done()] == [
+        "verify test (ground truth replay = 100 %)", "evaluate deterministic"]
+    record.parent.mkdir(parents=True, exist_ok=True)
+    record.write_text(json.dumps({"task": "reach_target", "split": "test", "dataset_fingerprint": "a-test",
+                                  "episodes": 4, "success_rate": 0.99}))
+    assert not pipeline.plan_steps(cfg)[-1].done()  # a record below 100 % verifies nothing
 
 
 def test_run_names_keep_a_recipe_apart(tmp_path):

@@ -112,3 +112,23 @@ def test_format_1_dataset_is_refused_in_one_line(data, tmp_path, capsys):
     store.write_meta(old, dict(meta, format_version=2))
     with pytest.raises(store.DatasetError, match="format-2 dataset: its motions record the measured gripper"):
         store.load_dataset(old)
+
+
+def test_replay_record_is_kept_per_version_of_the_split(data, capsys, tmp_path):
+    """--results keeps the record under the split's content hash, the hash an evaluation of the same
+    episodes records and the pipeline computes; another version of the split is not verified by it."""
+    from readjax import pipeline, verification
+
+    split = store.split_dir(data, TASK, "test")
+    rc = _cli.run(verify_cli.main, ["--task", TASK, "--data", str(data), "--episodes", "8", "--out",
+                                    str(tmp_path / "v.json"), "--results", str(tmp_path / "results")])
+    assert rc == 0, capsys.readouterr()
+    fp = store.load_dataset(split, limit=8).fingerprint
+    assert pipeline.split_fingerprint(split, 8) == fp != pipeline.split_fingerprint(split, 9)
+    assert pipeline.split_fingerprint(split, 10) is None  # the split holds 9
+    record = json.loads(verification.record_path(tmp_path / "results", TASK, fp).read_text())
+    assert record["dataset_fingerprint"] == fp and record["episodes"] == 8
+    assert verification.is_verified(tmp_path / "results", TASK, fp, 8)
+    assert not verification.is_verified(tmp_path / "results", TASK, fp, 9)
+    assert not verification.is_verified(tmp_path / "results", TASK, pipeline.split_fingerprint(split, 9), 9)
+    assert verification.evaluation_verified(tmp_path / "results", {"task": TASK, "test_fingerprint": fp, "episodes": 8})

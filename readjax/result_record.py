@@ -1,0 +1,98 @@
+"""Reading one evaluation result (``RUN/eval/<name>.json``): which of the paper's protocols it
+belongs to, the settings it ran with (fields it predates at what they then were), its configs with
+defaults filled in, its outcomes by seed, and whether it is the evaluation a pipeline step asks for.
+The report, the main table and the pipeline all read results through these, so they agree."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from readjax.config import DEFAULT_N, field_defaults
+from readjax.evaluation import EvalConfig
+
+PROTOCOLS = {  # protocol -> heading of its table
+    "main": "Methods x tasks (SPE retrieval where the method retrieves, clean test images)",
+    "oracle": "Oracle retrieval of the i-th nearest neighbour (Tables 4, 5 and 8: cheat<i>_N<N>)",
+    "perturbed": "Perturbed test images (Table 9)",
+}
+
+
+def protocol(r: dict) -> str:
+    """Which of the paper's experiment protocols an evaluation belongs to (see ``PROTOCOLS``)."""
+    cfg = r.get("eval_config", {})
+    if cfg.get("image_noise", 0.0) or cfg.get("brightness", 1.0) != 1.0:
+        return "perturbed"
+    if cfg.get("retrieval") == "cheat":
+        return "oracle"
+    return "main"
+
+
+def with_defaults(configs: dict) -> dict:
+    """Recorded configs with every field a run predates filled in at its default (new fields
+    default to the old behaviour), so runs of one recipe recorded by different readjax versions
+    compare equal."""
+    out = {}
+    for section, values in configs.items():
+        if isinstance(values, dict):
+            values = {**field_defaults(section), **values}
+        out[section] = values
+    return out
+
+
+# what an evaluation recorded before an EvalConfig field existed ran with: the field's default, and
+# one refinement round (rounds arrived later; evaluations record the rounds they ran)
+_EVAL_DEFAULTS = {**{f.name: f.default for f in dataclasses.fields(EvalConfig)}, "rounds": 1}
+
+
+def eval_config_of(r: dict) -> dict:
+    """The evaluation settings a result ran with, fields it predates at what they then were."""
+    return {**_EVAL_DEFAULTS, **(r.get("eval_config") or {})}
+
+
+def by_seed(r: dict) -> dict[int, bool]:
+    """A result's outcomes keyed by test seed (how two evaluations of the same episodes pair up)."""
+    return dict(zip(r.get("seeds", []), r.get("success", [])))
+
+
+def _refinement(r: dict) -> tuple[str | None, int]:
+    """(update, rounds) an evaluation refined with; an evaluation that predates ``refine_update``
+    ran its run's ``sde.update`` (a method without READ's update records None)."""
+    cfg = eval_config_of(r)
+    return cfg.get("refine_update", _run_sde(r).get("update")), cfg["rounds"]
+
+
+def _run_sde(r: dict) -> dict:
+    return with_defaults(r.get("configs") or {"sde": {}}).get("sde", {})
+
+
+def _clean_spe_top1(r: dict, n: int | None) -> bool:
+    """Clean images, SPE top-1, one candidate, N = ``n``; ``n=None``: the planner's default N (what an
+    iterative method runs when not told; a one-pass method records None)."""
+    cfg = eval_config_of(r)
+    return (protocol(r) == "main" and cfg["retrieval"] == "spe" and cfg["rank"] == 1 and cfg["candidates"] == 1
+            and (cfg["N"] in (None, DEFAULT_N) if n is None else cfg["N"] == n))
+
+
+def is_spe_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
+    """Whether ``r`` is a clean-image SPE top-1 evaluation at N = ``n`` with one candidate and, for
+    n > 0, the refinement ``(update, rounds)``."""
+    return _clean_spe_top1(r, n) and (n == 0 or _refinement(r) == tuple(refinement))
+
+
+def is_default_eval(r: dict, method: str, n: int | None) -> bool:
+    """Whether ``r`` is what ``experiments.evaluate --run RUN [--N n]`` writes for a ``method`` run
+    when told nothing else: clean images, SPE top-1, one candidate, N = ``n`` (None: the method's
+    default) and the refinement its run's configs name (one round of none for a method without
+    READ's update)."""
+    if r.get("method") != method or not _clean_spe_top1(r, n):
+        return False
+    update, rounds = _refinement(r)
+    if n == 0:
+        return True
+    sde = _run_sde(r)
+    return (update, rounds) == ((sde.get("update"), sde.get("rounds", 1)) if update is not None else (None, 1))
+
+
+def is_direct_eval(r: dict) -> bool:
+    """Whether ``r`` is a one-pass method's evaluation on clean test images (``direct``)."""
+    return protocol(r) == "main" and r.get("name") == "direct"

@@ -1,0 +1,52 @@
+"""Reading an evaluation result: which evaluation a pipeline step asks for, and pairing by seed."""
+
+from __future__ import annotations
+
+from readjax.config import DEFAULT_N
+from readjax.result_record import by_seed, is_default_eval, is_spe_eval, protocol
+
+
+def _read(N, update="cold_anchor", rounds=2, run_sde=("cold_anchor", 2), **cfg):
+    return {"method": "read", "name": "x",
+            "eval_config": {"episodes": 100, "N": N, "retrieval": "spe", "rank": 1, "candidates": 1,
+                            "image_noise": 0.0, "brightness": 1.0, "rounds": rounds, "refine_update": update, **cfg},
+            "configs": {"sde": {"update": run_sde[0], "rounds": run_sde[1]}}}
+
+
+def test_the_default_evaluation_of_a_read_run():
+    assert is_default_eval(_read(100), "read", 100)
+    assert is_default_eval(_read(0, rounds=2), "read", 0)  # at N = 0 no refinement ran, whatever the rounds
+    assert not is_default_eval(_read(100), "read", 0)
+    assert not is_default_eval(_read(100), "deterministic", 100)
+    # another refinement than the run's own is not what `evaluate --N 100` writes
+    assert not is_default_eval(_read(100, rounds=1), "read", 100)
+    assert not is_default_eval(_read(100, update="renoise"), "read", 100)
+    assert is_default_eval(_read(100, update="renoise", rounds=1, run_sde=("renoise", 1)), "read", 100)
+    # other protocols and settings
+    assert not is_default_eval(_read(100, retrieval="cheat"), "read", 100)
+    assert not is_default_eval(_read(100, candidates=5), "read", 100)
+    assert not is_default_eval(_read(100, brightness=1.2), "read", 100)
+    # the main table asks for a named refinement instead of the run's own
+    assert is_spe_eval(_read(100, rounds=1, update="cold"), 100, ("cold", 1))
+    assert not is_spe_eval(_read(100), 100, ("cold", 1))
+
+
+def test_the_default_evaluation_of_other_methods():
+    direct = {"method": "deterministic", "name": "direct",
+              "eval_config": {"episodes": 100, "N": None, "retrieval": "spe", "rank": 1, "candidates": 1,
+                              "rounds": 1, "refine_update": None}, "configs": {"train": {}}}
+    assert is_default_eval(direct, "deterministic", None)
+    assert not is_default_eval(direct, "deterministic", 100)
+    # an iterative method run with no --N records the planner's default N
+    vpsde = {"method": "vpsde", "eval_config": {**direct["eval_config"], "N": DEFAULT_N},
+             "configs": {"sde": {"update": "renoise", "rounds": 1}}}
+    assert is_default_eval(vpsde, "vpsde", None)
+    assert not is_default_eval({**vpsde, "eval_config": {**vpsde["eval_config"], "N": 7}}, "vpsde", None)
+    # an evaluation that predates a field ran with the field's default then
+    old = {"method": "deterministic", "eval_config": {"episodes": 100, "N": None, "retrieval": "spe"}}
+    assert protocol(old) == "main" and is_default_eval(old, "deterministic", None)
+
+
+def test_outcomes_pair_by_seed():
+    assert by_seed({"seeds": [5, 3], "success": [1, 0]}) == {5: 1, 3: 0}
+    assert by_seed({}) == {}
