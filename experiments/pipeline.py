@@ -11,7 +11,9 @@ For each task (in the paper's order), each step runs only if its output is missi
   5. render READ's first --media-episodes test episodes at its largest N (motion overlay + rollout
      video, RESULTS/<task>/<run>/media/), checking their outcomes equal the full evaluation's.
 Progress and an ETA cover the whole grid. A kill loses at most the step in progress; running the
-same command again skips what is done. --shard i/n runs every n-th task from the i-th, so n
+same command again skips what is done. An evaluation counts as done when RESULTS holds it on a test
+split whose replay is on record (RESULTS/<task>/verify/), so a fresh machine with only the committed
+results/ regenerates, verifies and trains only what an unfinished evaluation needs. --shard i/n runs every n-th task from the i-th, so n
 processes (or machines sharing the folders) split the grid.
 
 examples:
@@ -53,7 +55,8 @@ def parser() -> argparse.ArgumentParser:
                    help="READ's first k test episodes rendered at its largest --read-N: a motion overlay and a "
                         "rollout video in RESULTS/<task>/<run>/media/ (0: none)")
     p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
-    p.add_argument("--dry-run", action="store_true", help="list the steps and whether each is done; run nothing")
+    p.add_argument("--dry-run", action="store_true",
+                   help="list the steps, each done / skip (not needed) / todo; run nothing")
     return p
 
 
@@ -81,7 +84,8 @@ def main(argv=None) -> int:
     steps = pipeline.plan_steps(cfg)
     if args.dry_run:
         for s in steps:
-            print(f"{'done' if s.done() else 'todo'}  {s.task}: {s.label}")
+            print(f"{s.status()}  {s.task}: {s.label}")
+        print("(skip: not needed here, everything that would use its output is finished)")
         return 0
     try:
         summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True),

@@ -81,9 +81,22 @@ class Step:
     task: str
     label: str
     argv: list[str]
-    done: Callable[[], bool]
+    made: Callable[[], bool]  # whether its output is there
     after: Callable[[], None] = field(default=lambda: None)
     timing: Path | None = None  # the task's pipeline_timing.json, where its wall clock is recorded
+    users: list["Step"] = field(default_factory=list)  # the steps that need its output (none: a final one)
+
+    def needed(self) -> bool:
+        """Whether a step that uses this one's output is still to run (a final step always is)."""
+        return not self.users or not all(u.done() for u in self.users)
+
+    def done(self) -> bool:
+        """Its output is there, or nothing that would use it is left to run."""
+        return self.made() or not self.needed()
+
+    def status(self) -> str:
+        """``done`` (its output is there), ``skip`` (not needed: what it feeds is finished) or ``todo``."""
+        return "done" if self.made() else "skip" if not self.needed() else "todo"
 
 
 def _summary_kept(split_dir: Path) -> int:
@@ -145,12 +158,12 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
             prepare.append(Step("generate", task, f"generate {split} {count}", [
                 python, "-m", "experiments.generate", "--task", task, "--split", split, "--episodes", str(count),
                 "--batch-size", str(cfg.gen_batch), "--image-size", str(cfg.image_size), "--out", str(data),
-                "--quiet"], done=lambda d=d, c=count: _summary_kept(d) >= c))
+                "--quiet"], made=lambda d=d, c=count: _summary_kept(d) >= c))
             if split == "test":
                 prepare.append(Step("verify", task, "verify test (ground truth replay = 100 %)", [
                     python, "-m", "experiments.verify", "--task", task, "--data", str(data), "--episodes", str(count),
                     "--results", str(results), "--min", "100"],
-                    done=lambda d=d, c=count, task=task: verification.is_verified(
+                    made=lambda d=d, c=count, task=task: verification.is_verified(
                         results, task, split_fingerprint(d, c), c)))
         steps += prepare
         outputs: list[Step] = []  # the task's evaluations and media: what the rest is for
@@ -160,32 +173,26 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
             sets = sum((["--set", s] for s in cfg.overrides), [])
             train = Step("train", task, f"train {method}", [
                 python, "-m", "experiments.train", "--task", task, "--model", method, "--name", run.name,
-                "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"] + sets, done=marker.exists,
+                "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"] + sets, made=marker.exists,
                 after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
             uses: list[Step] = []
             for n, extra in eval_args(method, cfg.read_N):
                 argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", str(data),
                         "--episodes", str(cfg.test_episodes), "--videos", "0", "--quiet"] + extra
                 uses.append(Step("evaluate", task, f"evaluate {method} {' '.join(extra) or ''}".strip(), argv,
-                                 done=lambda task=task, run=run, method=method, n=n: finished_evaluation(
+                                 made=lambda task=task, run=run, method=method, n=n: finished_evaluation(
                                      results, task, run.name, method, n, cfg.test_episodes) is not None,
                                  after=lambda run=run: copy_results(run, results)))
             if method == "read" and cfg.media_episodes and max(cfg.read_N) > 0:
                 uses.append(media_step(cfg, task, run, python))
-            _needed_only_by(train, uses)
+            train.users = uses
             steps += [train] + uses
             outputs += uses
         for step in prepare:
-            _needed_only_by(step, outputs)
+            step.users = outputs
     for s in steps:
         s.timing = results / s.task / TIMING_FILE
     return steps
-
-
-def _needed_only_by(step: Step, users: list[Step]) -> None:
-    """Make ``step`` count as done also when every step that uses its output is done."""
-    own = step.done
-    step.done = lambda: own() or (bool(users) and all(u.done() for u in users))
 
 
 TIMING_FILE = "pipeline_timing.json"
@@ -234,7 +241,7 @@ def media_step(cfg: PipelineConfig, task: str, run: Path, python: str) -> Step:
             shutil.copyfile(f, dest / f.name)
 
     return Step("media", task, f"render READ N={n} ({k} episodes: overlay + video)", argv,
-                done=lambda: any(dest.glob("*_rollouts.mp4")), after=publish)
+                made=lambda: any(dest.glob("*_rollouts.mp4")), after=publish)
 
 
 def check_media(media: Path, eval_dir: Path) -> None:
@@ -305,7 +312,7 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
             raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
                                 f"re-run: finished steps are skipped")
         step.after()
-        if not step.done():
+        if not step.made():
             raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
                                 f"ground truth did not replay at 100 %)")
         seconds = time.time() - t0
