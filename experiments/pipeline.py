@@ -9,7 +9,9 @@ For each task (in the paper's order), each step runs only if its output is missi
   4. copy the evaluation JSONs to RESULTS/<task>/<method>/eval/ (commit them; build tables with
      `python -m experiments.report --runs results/`);
   5. render READ's first --media-episodes test episodes at its largest N (motion overlay + rollout
-     video, RESULTS/<task>/<run>/media/), checking their outcomes equal the full evaluation's.
+     video, RESULTS/<task>/<run>/media/), checking their outcomes equal the full evaluation's;
+  6. where READ scores below --diagnose-below %, evaluate it from the oracle's start too (cheat1_N<N>):
+     the evidence of whether retrieval or refinement limits the task.
 Progress and an ETA cover the whole grid. A kill loses at most the step in progress; running the
 same command again skips what is done. An evaluation counts as done when RESULTS holds it on a test
 split whose replay is on record (RESULTS/<task>/verify/), so a fresh machine with only the committed
@@ -54,6 +56,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--media-episodes", type=int, default=8,
                    help="READ's first k test episodes rendered at its largest --read-N: a motion overlay and a "
                         "rollout video in RESULTS/<task>/<run>/media/ (0: none)")
+    p.add_argument("--diagnose-below", type=float, default=80.0,
+                   help="where READ at its largest --read-N succeeds on fewer than this %% of the test episodes, "
+                        "evaluate it again at each --read-N from the oracle's start (the episode's own "
+                        "demonstration): retrieval or refinement, which one limits the task (0: never)")
     p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
     p.add_argument("--dry-run", action="store_true",
                    help="list the steps, each done / skip (not needed) / todo; run nothing")
@@ -80,12 +86,13 @@ def main(argv=None) -> int:
         results=args.results, train_episodes=args.train_episodes, test_episodes=args.test_episodes,
         image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
         overrides=tuple(args.set), shard=shard, run_names=run_names,
-        media_episodes=args.media_episodes).validate()
+        media_episodes=args.media_episodes, diagnose_below=args.diagnose_below).validate()
     steps = pipeline.plan_steps(cfg)
     if args.dry_run:
         for s in steps:
             print(f"{s.status()}  {s.task}: {s.label}")
-        print("(skip: not needed here, everything that would use its output is finished)")
+        print("(skip: not needed here: everything that would use its output is finished, or its condition "
+              "does not hold)")
         return 0
     try:
         summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True),

@@ -53,6 +53,7 @@ class PipelineConfig:
     shard: tuple[int, int] = (0, 1)  # (index, count): this process runs tasks[index::count]
     run_names: tuple[tuple[str, str], ...] = ()  # (method, run name); a method not named: its own name
     media_episodes: int = 8  # READ's first k test episodes (at most all) rendered: overlay + video; 0: none
+    diagnose_below: float = 80.0  # READ below this % at its largest N: also evaluated from the oracle's start
 
     def validate(self) -> "PipelineConfig":
         names = tuple(tasks.canonical_name(t) for t in self.tasks)
@@ -61,6 +62,8 @@ class PipelineConfig:
             raise ValueError(f"--shard must be i/n with 0 <= i < n, got {i}/{n}")
         if self.media_episodes < 0:
             raise ValueError(f"--media-episodes must be >= 0, got {self.media_episodes}")
+        if not 0.0 <= self.diagnose_below <= 100.0:
+            raise ValueError(f"--diagnose-below is a percentage in [0, 100], got {self.diagnose_below}")
         for m in self.methods:
             methods.module(m)
         for m, name in self.run_names:
@@ -85,17 +88,20 @@ class Step:
     after: Callable[[], None] = field(default=lambda: None)
     timing: Path | None = None  # the task's pipeline_timing.json, where its wall clock is recorded
     users: list["Step"] = field(default_factory=list)  # the steps that need its output (none: a final one)
+    wanted: Callable[[], bool] = field(default=lambda: True)  # a final step run only on a condition
 
     def needed(self) -> bool:
-        """Whether a step that uses this one's output is still to run (a final step always is)."""
-        return not self.users or not all(u.done() for u in self.users)
+        """Whether this step is wanted and, unless it is a final step, a step that uses its output is
+        still to run."""
+        return self.wanted() and (not self.users or not all(u.done() for u in self.users))
 
     def done(self) -> bool:
-        """Its output is there, or nothing that would use it is left to run."""
+        """Its output is there, or nothing wants it."""
         return self.made() or not self.needed()
 
     def status(self) -> str:
-        """``done`` (its output is there), ``skip`` (not needed: what it feeds is finished) or ``todo``."""
+        """``done`` (its output is there), ``skip`` (not needed: what it feeds is finished, or its
+        condition does not hold) or ``todo``."""
         return "done" if self.made() else "skip" if not self.needed() else "todo"
 
 
@@ -129,18 +135,20 @@ def split_fingerprint(split_dir: Path, episodes: int) -> str | None:
 
 
 def finished_evaluation(results: Path, task: str, run_name: str, method: str, n: int | None,
-                        episodes: int) -> Path | None:
+                        episodes: int, oracle_rank: int | None = None) -> dict | None:
     """The evaluation a step asks for, if ``results/<task>/<run>/eval/`` holds it: ``method``'s
-    default evaluation at N = ``n`` (``result_record.is_default_eval``) over ``episodes`` test
-    episodes, on a test split whose ground-truth replay is on record at 100 %."""
+    default evaluation at N = ``n`` (``result_record.is_default_eval``; from the oracle's
+    ``oracle_rank``-th neighbour where given) over ``episodes`` test episodes, on a test split whose
+    ground-truth replay is on record at 100 %."""
     for f in sorted((results / task / run_name / "eval").glob("*.json")):
         try:
             r = json.loads(f.read_text())
         except json.JSONDecodeError:
             continue
-        if (r.get("task") == task and r.get("episodes") == episodes and result_record.is_default_eval(r, method, n)
+        if (r.get("task") == task and r.get("episodes") == episodes
+                and result_record.is_default_eval(r, method, n, oracle_rank)
                 and verification.evaluation_verified(results, r)):
-            return f
+            return r
     return None
 
 
@@ -185,6 +193,8 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                                  after=lambda run=run: copy_results(run, results)))
             if method == "read" and cfg.media_episodes and max(cfg.read_N) > 0:
                 uses.append(media_step(cfg, task, run, python))
+            if method == "read" and cfg.diagnose_below > 0:
+                uses += oracle_steps(cfg, task, run, python)
             train.users = uses
             steps += [train] + uses
             outputs += uses
@@ -218,6 +228,30 @@ def _load() -> float | None:
         return round(os.getloadavg()[0], 2)
     except OSError:  # not on every platform
         return None
+
+
+def oracle_steps(cfg: PipelineConfig, task: str, run: Path, python: str) -> list[Step]:
+    """Where READ at its largest N scores below ``cfg.diagnose_below`` %, READ again at each N from
+    the oracle's start (the test episode's own demonstration, Table 4's i = 1): success there and
+    not from SPE's start says retrieval limits the task; failure from the right start too says the
+    refinement or the execution does. Skipped (``wanted`` false) when READ scores at least that."""
+    results, top = Path(cfg.results), max(cfg.read_N)
+
+    def weak() -> bool:
+        r = finished_evaluation(results, task, run.name, "read", top, cfg.test_episodes)
+        return r is None or 100.0 * r["success_rate"] < cfg.diagnose_below  # not evaluated yet: assume so
+
+    steps = []
+    for n in cfg.read_N:
+        argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", cfg.data,
+                "--episodes", str(cfg.test_episodes), "--videos", "0", "--retrieval", "cheat", "--rank", "1",
+                "--N", str(n), "--quiet"]
+        steps.append(Step("evaluate", task, f"evaluate read from the oracle's start --N {n} "
+                                            f"(READ below {cfg.diagnose_below:g} %)", argv,
+                          made=lambda n=n: finished_evaluation(results, task, run.name, "read", n, cfg.test_episodes,
+                                                               oracle_rank=1) is not None,
+                          after=lambda: copy_results(run, results), wanted=weak))
+    return steps
 
 
 MEDIA_VIDEOS = 4  # rollouts side by side in a task's video
@@ -302,7 +336,13 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
     by_kind: dict[str, list[float]] = {}  # seconds of finished steps, by kind and by label
     by_label: dict[str, list[float]] = {}
     t_start = time.time()
+    ran = 0
     for k, step in enumerate(todo, 1):
+        if step.done():  # finished meanwhile (another shard), or its condition no longer holds
+            log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (skipped: {step.status()})")
+            skipped += 1
+            continue
+        ran += 1
         eta = _eta(todo[k - 1:], by_label, by_kind, prior)
         log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
             f"{', ETA ' + _hms(eta) if eta is not None else ''})")
@@ -319,7 +359,7 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
         by_kind.setdefault(step.kind, []).append(seconds)
         by_label.setdefault(step.label, []).append(seconds)
         record_timing(step, seconds, load)
-    return {"ran": len(todo), "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
+    return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
 
 
 def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[str, list[float]],

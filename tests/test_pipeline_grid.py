@@ -33,8 +33,9 @@ class FakeRunner:
     """Stands in for the commands: writes what each would write, records the calls. ``machine``
     enters every dataset's content hash, as float rounding does on a real machine."""
 
-    def __init__(self, verify_rate=1.0, media_outcome=1, machine="a"):
+    def __init__(self, verify_rate=1.0, media_outcome=1, machine="a", read_top=1):
         self.calls, self.verify_rate, self.media_outcome, self.machine = [], verify_rate, media_outcome, machine
+        self.read_top = read_top  # READ's outcome in every episode at N = 100 from SPE's start
         self.methods = {}
 
     def __call__(self, argv):
@@ -60,13 +61,15 @@ class FakeRunner:
             ev = Path(arg("--out")) if "--out" in argv else run / "eval"
             ev.mkdir(parents=True, exist_ok=True)
             method, n = self.methods[str(run)], int(arg("--N")) if "--N" in argv else None
-            name = f"spe_N{n}" if n is not None else "direct"
+            oracle = "--retrieval" in argv and arg("--retrieval") == "cheat"
+            name = (f"cheat{arg('--rank')}_N{n}" if oracle else f"spe_N{n}") if n is not None else "direct"
             k = int(arg("--episodes"))
-            ok = self.media_outcome if "--out" in argv else 1
+            ok = self.media_outcome if "--out" in argv else self.read_top if (n == 100 and not oracle) else 1
             fp = json.loads((Path(arg("--data")) / run.parent.name / "test" / "summary.json").read_text())["fingerprint"]
             (ev / f"{name}.json").write_text(json.dumps({
                 "task": run.parent.name, "method": method, "name": name, "episodes": k, "test_fingerprint": fp,
-                "eval_config": {"episodes": k, "N": n, "retrieval": "spe", "rank": 1, "candidates": 1, "rounds": 1,
+                "success_rate": float(ok), "eval_config": {
+                    "episodes": k, "N": n, "retrieval": "cheat" if oracle else "spe", "rank": 1, "candidates": 1, "rounds": 1,
                                 "refine_update": "renoise" if method == "read" else None},
                 "configs": {"sde": {"update": "renoise", "rounds": 1}} if method == "read" else {},
                 "seeds": list(range(1000000, 1000000 + k)), "success": [ok] * k}))
@@ -85,7 +88,10 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
                      ("reach_target", "media")]
     runner, lines = FakeRunner(), []
     out = pipeline.run_steps(steps, log=lines.append, runner=runner)
-    assert out["ran"] == len(steps) == 2 * (3 + 1 + 2 + 1 + 1 + 1)
+    assert len(steps) == 2 * (3 + 1 + 2 + 1 + 2 + 1 + 1)
+    # READ scores 100 % at N = 100: its oracle-start evaluations (for a task below 80 %) are skipped
+    assert out["ran"] == len(steps) - 4 and out["skipped"] == 4
+    assert sum("skipped: skip" in ln for ln in lines) == 4
     assert any("ETA" in ln for ln in lines[2:])
     assert (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N0.json").exists()
     assert (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").exists()
@@ -97,7 +103,7 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert not (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N100_rollouts.mp4").exists()
     # every step's wall clock is recorded beside the task's results, and the report tabulates it
     timing = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
-    assert timing["task"] == "reach_target" and len(timing["steps"]) == len(steps) // 2
+    assert timing["task"] == "reach_target" and len(timing["steps"]) == len(steps) // 2 - 2
     assert {st["kind"] for st in timing["steps"].values()} == {"generate", "verify", "train", "evaluate", "media"}
     assert all(st["seconds"] >= 0 and st["cpus"] >= 1 for st in timing["steps"].values())
     prior = pipeline.prior_costs(tmp_path / "results")  # both tasks' records, for a later run's ETA
@@ -133,7 +139,7 @@ def test_a_fresh_machine_needs_only_the_results(tmp_path):
         ("push_button", "generate train 8"), ("push_button", "train deterministic"),
         ("push_button", "evaluate deterministic")]
     assert [s.status() for s in steps if s.task == "push_button"] == [
-        "todo", "todo", "todo", "skip", "done", "done", "done", "todo", "todo"]  # train read: not needed
+        "todo", "todo", "todo", "skip", "done", "done", "done", "skip", "skip", "todo", "todo"]  # train read: not needed
     pipeline.run_steps(steps, log=lambda m: None, runner=fresh)
     assert [m for m, _ in fresh.calls] == ["generate", "verify", "generate", "train", "evaluate"]
     # machine b's split has its own replay record beside machine a's
@@ -186,6 +192,24 @@ def test_rendered_episodes_must_match_the_evaluation(tmp_path):
     assert "media" not in {s.kind for s in steps}
     with pytest.raises(ValueError, match="--media-episodes"):
         _cfg(tmp_path, media_episodes=-1)
+
+
+def test_a_weak_task_is_evaluated_from_the_oracles_start(tmp_path):
+    """READ below --diagnose-below % at its largest N: the grid evaluates it from the oracle's start
+    at each N too (retrieval or refinement: which limits the task); at or above, it does not."""
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",))
+    runner = FakeRunner(read_top=0, media_outcome=0)
+    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=runner)
+    oracle = [a for m, a in runner.calls if m == "evaluate" and "cheat" in a]
+    assert [a[a.index("--N") + 1] for a in oracle] == ["0", "100"] and all(a[a.index("--rank") + 1] == "1" for a in oracle)
+    ev = tmp_path / "results" / "reach_target" / "read" / "eval"
+    assert sorted(f.name for f in ev.glob("*.json")) == ["cheat1_N0.json", "cheat1_N100.json", "spe_N0.json",
+                                                         "spe_N100.json"]
+    assert [s.status() for s in pipeline.plan_steps(cfg)][-2:] == ["done", "done"]
+    never = _cfg(tmp_path / "b", tasks=("RT",), methods=("read",), diagnose_below=0.0)
+    assert not any("oracle" in s.label for s in pipeline.plan_steps(never))
+    with pytest.raises(ValueError, match="--diagnose-below"):
+        _cfg(tmp_path, diagnose_below=120.0)
 
 
 def test_eta_prices_each_step_by_its_own_label(tmp_path):

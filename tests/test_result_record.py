@@ -26,6 +26,11 @@ def test_the_default_evaluation_of_a_read_run():
     assert not is_default_eval(_read(100, retrieval="cheat"), "read", 100)
     assert not is_default_eval(_read(100, candidates=5), "read", 100)
     assert not is_default_eval(_read(100, brightness=1.2), "read", 100)
+    # from the oracle's start (--retrieval cheat --rank 1)
+    oracle = _read(100, retrieval="cheat")
+    assert is_default_eval(oracle, "read", 100, oracle_rank=1) and not is_default_eval(oracle, "read", 100)
+    assert not is_default_eval(_read(100, retrieval="cheat", rank=3), "read", 100, oracle_rank=1)
+    assert not is_default_eval(_read(100), "read", 100, oracle_rank=1)
     # the main table asks for a named refinement instead of the run's own
     assert is_spe_eval(_read(100, rounds=1, update="cold"), 100, ("cold", 1))
     assert not is_spe_eval(_read(100), 100, ("cold", 1))
