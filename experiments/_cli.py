@@ -39,3 +39,13 @@ def positive_int(text: str) -> int:
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
     pass
+
+
+def add_split_arguments(p: argparse.ArgumentParser) -> None:
+    """--task, --data, --split, --episodes and --batch-size: which stored episodes a ground-truth
+    replay executes (experiments.verify, experiments.tolerance), and how many at once."""
+    p.add_argument("--task", required=True, help="task name or paper code")
+    p.add_argument("--data", default="data", help="dataset root (holds <task>/<split>/)")
+    p.add_argument("--split", default="test", choices=["train", "test"])
+    p.add_argument("--episodes", type=positive_int, default=None, help="the first N episodes (default: all)")
+    p.add_argument("--batch-size", type=positive_int, default=32, help="episodes executed together")

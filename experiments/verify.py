@@ -28,12 +28,8 @@ from experiments import _cli
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.verify", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
-    p.add_argument("--task", required=True, help="task name or paper code")
-    p.add_argument("--data", default="data", help="dataset root (holds <task>/<split>/)")
-    p.add_argument("--split", default="test", choices=["train", "test"])
-    p.add_argument("--episodes", type=_cli.positive_int, default=None, help="the first N episodes (default: all)")
+    _cli.add_split_arguments(p)
     p.add_argument("--min", type=float, default=100.0, help="lowest acceptable success, percent")
-    p.add_argument("--batch-size", type=_cli.positive_int, default=32, help="episodes executed together")
     p.add_argument("--out", default=None, help="JSON path (default DATA/<task>/<split>/verify.json)")
     p.add_argument("--results", default=None,
                    help="also keep the record as RESULTS/<task>/verify/<split>_<fingerprint>.json (commit it)")

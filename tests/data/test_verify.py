@@ -132,3 +132,18 @@ def test_replay_record_is_kept_per_version_of_the_split(data, capsys, tmp_path):
     assert not verification.is_verified(tmp_path / "results", TASK, fp, 9)
     assert not verification.is_verified(tmp_path / "results", TASK, pipeline.split_fingerprint(split, 9), 9)
     assert verification.evaluation_verified(tmp_path / "results", {"task": TASK, "test_fingerprint": fp, "episodes": 8})
+
+
+def test_tolerance_replays_the_ground_truth_with_a_known_error(data, capsys, tmp_path):
+    """No error: the plain replay, 100 %; every waypoint 30 cm off: the reach misses its sphere."""
+    from experiments import tolerance as tolerance_cli
+
+    out = tmp_path / "tol.json"
+    argv = ["--task", TASK, "--data", str(data), "--shift-cm", "30", "--turn-deg", "45", "--out", str(out), "--quiet"]
+    assert _cli.run(tolerance_cli.main, argv) == 0, capsys.readouterr()
+    r = json.loads(out.read_text())
+    assert list(r["shift_cm"]) == ["0", "30"] and list(r["turn_deg"]) == ["0", "45"]
+    assert r["shift_cm"]["0"]["success"] == [1] * 9 and r["shift_cm"]["30"]["success_rate"] < 0.5
+    assert r["dataset_fingerprint"] == store.load_dataset(store.split_dir(data, TASK, "test")).fingerprint
+    assert out.with_suffix(".png").exists() and "| shift (cm) | 0 | 30 |" in capsys.readouterr().out
+    assert _cli.run(tolerance_cli.main, argv[:4] + ["--shift-cm", "-1"]) == 2
