@@ -204,6 +204,14 @@ def classify(success, aborted, failure, plan_closings, gt_closings, held, errors
     return modes
 
 
+def median_by_outcome(values, success) -> dict[str, float | None]:
+    """The median of per-episode ``values`` over the episodes that succeeded and over those that
+    failed (None where there are none), rounded to 2 decimals."""
+    v, ok = np.asarray(values, np.float64), np.asarray(success, bool)
+    median = lambda mask: float(np.round(np.median(v[mask]), 2)) if mask.any() else None  # noqa: E731
+    return {"succeeded": median(ok), "failed": median(~ok)}
+
+
 def diagnose(plan_motion: np.ndarray, plan_pose: tuple, gt_motion: np.ndarray, gt_pose: tuple,
              cam_origin: np.ndarray, success, aborted, failure, held, start_pos: np.ndarray | None = None,
              tol: float = KEYFRAME_TOL_M, tol_deg: float = KEYFRAME_TOL_DEG) -> dict:
@@ -223,7 +231,6 @@ def diagnose(plan_motion: np.ndarray, plan_pose: tuple, gt_motion: np.ndarray, g
     modes = classify(success, aborted, failure, plan_c, gt_c, held, err, tol, tol_deg)
     counts = Counter(m for m in modes if m is not None)
     cm = lambda x: np.round(100 * np.asarray(x), 2).tolist()  # noqa: E731
-    median = lambda mask: float(np.round(100 * np.median(err["error"][mask]), 2)) if mask.any() else None  # noqa: E731
     out = {
         "tolerance_cm": 100 * tol, "tolerance_deg": tol_deg, "wrong_place_cm": 100 * WRONG_PLACE_M,
         "mode": modes,
@@ -234,7 +241,7 @@ def diagnose(plan_motion: np.ndarray, plan_pose: tuple, gt_motion: np.ndarray, g
         "aborted": aborted.astype(int).tolist(), "task_failure": failure.astype(int).tolist(),
         "held": None if held is None else held.astype(int).tolist(),
         "counts": {m: counts[m] for m in MODES if counts[m]},
-        "median_keyframe_error_cm": {"succeeded": median(success), "failed": median(~success)},
+        "median_keyframe_error_cm": median_by_outcome(100 * err["error"], success),
     }
     if start_pos is not None:
         start = keyframe_errors(start_pos, gt_pose[0], gt_motion[..., 9], cam_origin)["error"]

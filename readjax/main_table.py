@@ -160,11 +160,12 @@ def failure_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
                 continue
             f = r["failures"]
             med = f["median_keyframe_error_cm"]
+            rot = failure_modes.median_by_outcome(f["keyframe_rotation_deg"], r["success"])
             failed = len(r["success"]) - sum(r["success"])
             wrong_start = f.get("failed_from_a_wrong_start")
             body.append(f"| {code} | {label} | {failed} | " + " | ".join(str(f["counts"].get(m, 0) or "")
                         for m in failure_modes.MODES) + f" | {'–' if wrong_start is None else wrong_start} | "
-                        f"{fmt(med['failed'])} / {fmt(med['succeeded'])} |")
+                        f"{fmt(med['failed'])} / {fmt(med['succeeded'])} | {fmt(rot['failed'])} / {fmt(rot['succeeded'])} |")
     if not body:
         return []
     f0 = next(r["failures"] for by_task in rows.values() for r in by_task.values() if "failures" in r)
@@ -175,8 +176,9 @@ def failure_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
             f"- *from a wrong start*: failures whose retrieved motion (where refinement started) was already "
             f"more than {100 * failure_modes.WRONG_PLACE_M:g} cm off at a key frame", "",
             "| task | row | failed | " + " | ".join(failure_modes.MODES)
-            + " | from a wrong start | worst key-frame error, cm (median: failed / succeeded) |",
-            "|---" * (len(failure_modes.MODES) + 5) + "|"] + body + [""]
+            + " | from a wrong start | worst key-frame error, cm (median: failed / succeeded) "
+            "| orientation error, degrees (median: failed / succeeded) |",
+            "|---" * (len(failure_modes.MODES) + 6) + "|"] + body + [""]
 
 
 def training_lines(rows: dict[str, dict[str, dict]]) -> list[str]:

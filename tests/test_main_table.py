@@ -114,13 +114,13 @@ def test_failures_are_counted_by_mode_per_row(tmp_path):
     _write(runs, "reach_target", "read_a", "spe_N100_now", [True, False, False, True])
     _write(runs, "reach_target", "det_a", "direct", [False] * 4, method="deterministic", N=None)
     _write(runs, "push_button", "read_a", "spe_N100_now", [True] * 2)  # predates the record: left out
-    for run, name, modes, med, wrong in (
-            ("read_a", "spe_N100_now", [None, "depth", "wrong place", None], (4.0, 0.5), 1),
-            ("det_a", "direct", ["unreachable", "near miss", "depth", "depth"], (3.25, None), None)):
+    for run, name, modes, med, rot, wrong in (
+            ("read_a", "spe_N100_now", [None, "depth", "wrong place", None], (4.0, 0.5), [1, 30, 20, 3], 1),
+            ("det_a", "direct", ["unreachable", "near miss", "depth", "depth"], (3.25, None), [5] * 4, None)):
         f = runs / "reach_target" / run / "eval" / f"{name}.json"
         counts = {m: modes.count(m) for m in dict.fromkeys(modes) if m}
         record = {"tolerance_cm": 2.0, "tolerance_deg": 10.0, "mode": modes, "counts": counts,
-                  "median_keyframe_error_cm": {"failed": med[0], "succeeded": med[1]}}
+                  "median_keyframe_error_cm": {"failed": med[0], "succeeded": med[1]}, "keyframe_rotation_deg": rot}
         if wrong is not None:
             record["failed_from_a_wrong_start"] = wrong
         f.write_text(json.dumps(dict(json.loads(f.read_text()), failures=record)))
@@ -129,6 +129,6 @@ def test_failures_are_counted_by_mode_per_row(tmp_path):
     section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
     assert "| task | row | failed | unreachable | gripper sequence | wrong place | depth | image position | " \
            "orientation | missed grasp | task failure | near miss | from a wrong start |" in section
-    assert "| RT | READ (N=100): `read_a` | 2 |  |  | 1 | 1 |  |  |  |  |  | 1 | 4.0 / 0.5 |" in section
-    assert "| RT | Deterministic: `det_a` | 4 | 1 |  |  | 2 |  |  |  |  | 1 | – | 3.2 / – |" in section
+    assert "| RT | READ (N=100): `read_a` | 2 |  |  | 1 | 1 |  |  |  |  |  | 1 | 4.0 / 0.5 | 25.0 / 2.0 |" in section
+    assert "| RT | Deterministic: `det_a` | 4 | 1 |  |  | 2 |  |  |  |  | 1 | – | 3.2 / – | 5.0 / – |" in section
     assert "| PB |" not in section.split("Failures by mode")[1].split("How the rows")[0]
