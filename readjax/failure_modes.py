@@ -136,19 +136,25 @@ def rotation_angles(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
-def orientation_error(plan_rot: np.ndarray, gt_rot: np.ndarray, frames: np.ndarray) -> float:
-    """One plan's orientation error at its key frames (degrees), blind to a constant turn about the
-    gripper's approach axis: the largest tilt of the approach axis (the rotation's third column)
-    from the ground truth's, and the largest error in how far the gripper turns between consecutive
-    key frames (from the first frame when there is only one). A grasp of a symmetric object (a
-    square cap, a cylinder) at another yaw is as good as the demonstration's, so the absolute
-    rotation error is no measure of a failure; a tilted approach or a short twist is."""
+def orientation_parts(plan_rot: np.ndarray, gt_rot: np.ndarray, frames: np.ndarray) -> tuple[float, float]:
+    """(tilt, turn) in degrees, the two parts of :func:`orientation_error`: the largest tilt of the
+    approach axis (the rotation's third column) from the ground truth's at the key frames, and the
+    largest error in how far the gripper turns between consecutive key frames (from the first
+    frame when there is only one)."""
     pr, gr = np.asarray(plan_rot, np.float64), np.asarray(gt_rot, np.float64)
     tilt = np.degrees(np.arccos(np.clip(np.sum(pr[frames, :, 2] * gr[frames, :, 2], axis=-1), -1.0, 1.0)))
     ends = frames if len(frames) > 1 else np.concatenate([[0], frames])
     turn_p = np.einsum("kji,kjl->kil", pr[ends[:-1]], pr[ends[1:]])
     turn_g = np.einsum("kji,kjl->kil", gr[ends[:-1]], gr[ends[1:]])
-    return float(max(tilt.max(), rotation_angles(turn_p, turn_g).max()))
+    return float(tilt.max()), float(rotation_angles(turn_p, turn_g).max())
+
+
+def orientation_error(plan_rot: np.ndarray, gt_rot: np.ndarray, frames: np.ndarray) -> float:
+    """One plan's orientation error at its key frames (degrees), blind to a constant turn about the
+    gripper's approach axis: the larger of :func:`orientation_parts`. A grasp of a symmetric object
+    (a square cap, a cylinder) at another yaw is as good as the demonstration's, so the absolute
+    rotation error is no measure of a failure; a tilted approach or a short twist is."""
+    return max(orientation_parts(plan_rot, gt_rot, frames))
 
 
 def keyframe_errors(plan_pos: np.ndarray, gt_pos: np.ndarray, gt_grip: np.ndarray, cam_origin: np.ndarray,

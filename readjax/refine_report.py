@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from readjax import failure_modes
 from readjax.data import motion as motion_lib
 from readjax.diffusion.latent import codec
 from readjax.diffusion.refine import refine
@@ -24,19 +25,26 @@ WITHIN_M = 0.03
 
 
 def end_errors(camera, plans: np.ndarray, gt: np.ndarray, image_size: int) -> dict[str, np.ndarray]:
-    """Final-frame errors per episode: uv (px), depth (mm), 3D distance (cm)."""
+    """Errors per episode: at the final frame uv (px), depth (mm), 3D distance (cm); at the ground
+    truth's key frames the orientation error's two parts, tilt and turn (degrees,
+    ``failure_modes.orientation_parts``)."""
     uv_px = np.linalg.norm(plans[:, -1, 0:2] - gt[:, -1, 0:2], axis=-1) * image_size / 2
     depth_mm = np.abs(plans[:, -1, 2] - gt[:, -1, 2]) * 1000
-    pa = np.asarray(motion_lib.decode(camera, jnp.asarray(plans[:, -1:]))[0])[:, 0]
-    pb = np.asarray(motion_lib.decode(camera, jnp.asarray(gt[:, -1:]))[0])[:, 0]
-    return {"uv_px": uv_px, "depth_mm": depth_mm, "err_cm": np.linalg.norm(pa - pb, axis=-1) * 100}
+    pa, ra, _ = (np.asarray(x) for x in motion_lib.decode(camera, jnp.asarray(plans)))
+    pb, rb, grip = (np.asarray(x) for x in motion_lib.decode(camera, jnp.asarray(gt)))
+    parts = np.array([failure_modes.orientation_parts(ra[b], rb[b], frames)
+                      for b, frames in enumerate(failure_modes.keyframes(grip))]).reshape(-1, 2)
+    return {"uv_px": uv_px, "depth_mm": depth_mm, "err_cm": np.linalg.norm(pa[:, -1] - pb[:, -1], axis=-1) * 100,
+            "tilt_deg": parts[:, 0], "turn_deg": parts[:, 1]}
 
 
 def summarise(errors: dict[str, np.ndarray]) -> dict[str, float]:
     return {"uv_px_median": float(np.median(errors["uv_px"])),
             "depth_mm_median": float(np.median(errors["depth_mm"])),
             "err_cm_median": float(np.median(errors["err_cm"])),
-            "within_3cm": float(np.mean(errors["err_cm"] < WITHIN_M * 100))}
+            "within_3cm": float(np.mean(errors["err_cm"] < WITHIN_M * 100)),
+            "tilt_deg_median": float(np.median(errors["tilt_deg"])),
+            "turn_deg_median": float(np.median(errors["turn_deg"]))}
 
 
 def refine_history(planner, images: np.ndarray, key: jax.Array, n_steps: int, batch_size: int = 50,
@@ -137,15 +145,20 @@ def format_report(result: dict) -> str:
     """The table of the refinement issue (one line per split and N) and the loop's trajectory."""
     lines = [f"refinement update: {result['update']}, retrieval: {result.get('retrieval', 'spe')}, "
              f"rounds: {result.get('rounds', 1)} (N = steps per round)",
-             "| images | N | end uv err (px, median) | end depth err (mm, median) | 3D err (cm, median) | within 3 cm |",
-             "|---|---|---|---|---|---|"]
+             "| images | N | end uv err (px, median) | end depth err (mm, median) | 3D err (cm, median) | within 3 cm "
+             "| key-frame tilt / turn err (deg, median) |",
+             "|---|---|---|---|---|---|---|"]
     for r in result["rows"]:
+        rot = (f"{r['tilt_deg_median']:.1f} / {r['turn_deg_median']:.1f}" if "tilt_deg_median" in r else "–")
         lines.append(f"| {r['split']} | {r['N']} | {r['uv_px_median']:.2f} | {r['depth_mm_median']:.0f} | "
-                     f"{r['err_cm_median']:.1f} | {100 * r['within_3cm']:.0f} % |")
+                     f"{r['err_cm_median']:.1f} | {100 * r['within_3cm']:.0f} % | {rot} |")
     for split, clean in result.get("clean_input", {}).items():
         cells = "; ".join(f"{'autoencoder only' if r['t'] is None else 't = ' + format(r['t'], 'g')}: "
-                          f"{r['depth_mm_median']:.1f} mm / {r['err_cm_median']:.1f} cm" for r in clean)
-        lines.append(f"{split}, denoiser once on Dec(Enc(ground truth)), end depth / 3D error (median): {cells}")
+                          f"{r['depth_mm_median']:.1f} mm / {r['err_cm_median']:.1f} cm"
+                          + (f" / {r['tilt_deg_median']:.1f}° / {r['turn_deg_median']:.1f}°" if "tilt_deg_median" in r else "")
+                          for r in clean)
+        lines.append(f"{split}, denoiser once on Dec(Enc(ground truth)), end depth / 3D error / key-frame tilt / "
+                     f"turn error (median): {cells}")
     for split, loop in result["loops"].items():
         d = np.asarray(loop["end_depth_err_mm_mean"])
         marks = sorted({0, len(d) // 4, len(d) // 2, 3 * len(d) // 4, len(d) - 1})

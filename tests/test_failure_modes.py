@@ -120,10 +120,13 @@ def test_orientation_error_ignores_a_constant_yaw_but_not_a_short_twist():
     short = gt.copy()
     short[10] = _rz(140)  # twists 20 degrees too little
     assert failure_modes.orientation_error(short, gt, frames) == pytest.approx(20.0, abs=1e-4)
+    assert failure_modes.orientation_parts(short, gt, frames) == pytest.approx((0.0, 20.0), abs=1e-4)
     tilted = gt.copy()
     c, s_ = np.cos(np.radians(15)), np.sin(np.radians(15))
     tilted[5] = np.array([[1, 0, 0], [0, c, -s_], [0, s_, c]])  # the approach axis tilted 15 degrees
     assert failure_modes.orientation_error(tilted, gt, frames) == pytest.approx(15.0, abs=1e-4)
+    tilt, turn = failure_modes.orientation_parts(tilted, gt, frames)  # a tilt at the grasp alone also turns
+    assert tilt == pytest.approx(15.0, abs=1e-4) and 0 < turn <= 15.0 + 1e-4  # the hand between the key frames
     np.testing.assert_allclose(failure_modes.rotation_angles(_rz(180), np.eye(3)), 180.0)
     err = failure_modes.keyframe_errors(np.zeros((1, t, 3)) + [1, 0, 0], np.zeros((1, t, 3)) + [1, 0, 0],
                                         _grip((5, 10))[None], np.zeros(3), short[None], gt[None])
