@@ -12,6 +12,7 @@ setting of the same run never fills it by accident.
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -204,6 +205,21 @@ def training_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
     return out + [""]
 
 
+MEDIA_EPISODES_BEFORE_RECORD = 8  # what the pipeline rendered before it published the media JSON
+
+
+def shown_outcomes(media_json: Path, cell: dict) -> list[bool]:
+    """The outcomes of the episodes a task's overlay and video show, in the cell's evaluation: the
+    rendered evaluation's seeds, read from its JSON beside the pictures; media published before
+    the JSON was are the pipeline's default first 8 episodes."""
+    if media_json.exists():
+        outcomes = dict(zip(cell.get("seeds", []), cell["success"]))
+        seeds = json.loads(media_json.read_text()).get("seeds", [])
+        if seeds and all(s in outcomes for s in seeds):
+            return [outcomes[s] for s in seeds]
+    return cell["success"][:MEDIA_EPISODES_BEFORE_RECORD]
+
+
 def media_lines(read_cells: dict[str, dict], doc_dir: Path | None) -> list[str]:
     """READ's rendered episodes per task, where the pipeline made them: the first test episodes of
     the evaluation that fills the READ cell, rendered again under the same name in the run's
@@ -219,7 +235,7 @@ def media_lines(read_cells: dict[str, dict], doc_dir: Path | None) -> list[str]:
         if not overlay.exists():
             continue
         link = lambda f: Path(os.path.relpath(f.resolve(), doc_dir.resolve())).as_posix() if doc_dir else f.as_posix()  # noqa: E731
-        ok = r["success"][:8]
+        ok = shown_outcomes(media / f"{r['name']}.json", r)
         head = f"**{code}** ({tasks.canonical_name(code)}): the first {len(ok)} test episodes, {sum(ok)} succeeded"
         out += [head + (f"; [rollout video]({link(video)})" if video.exists() else "") + ".", "",
                 f"![{code}: retrieved, planned and ground-truth motions]({link(overlay)})", ""]

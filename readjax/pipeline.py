@@ -260,7 +260,8 @@ MEDIA_VIDEOS = 4  # rollouts side by side in a task's video
 def media_step(cfg: PipelineConfig, task: str, run: Path, python: str) -> Step:
     """Render READ's first ``media_episodes`` test episodes at its largest N: an evaluation of those
     episodes alone, written to RUN/media/ (outside RUN/eval/, so no table counts it), then copied
-    to results/<task>/<run>/media/ with its outcomes checked against the full evaluation's."""
+    to results/<task>/<run>/media/ (the pictures and the rendered evaluation's JSON) with its
+    outcomes checked against the full evaluation's."""
     n = max(cfg.read_N)
     k = min(cfg.media_episodes, cfg.test_episodes)
     media, dest = run / "media", Path(cfg.results) / task / run.name / "media"
@@ -271,8 +272,8 @@ def media_step(cfg: PipelineConfig, task: str, run: Path, python: str) -> Step:
     def publish():
         check_media(media, run / "eval")
         dest.mkdir(parents=True, exist_ok=True)
-        for f in sorted(media.glob("*_overlay.png")) + sorted(media.glob("*_rollouts.mp4")):
-            shutil.copyfile(f, dest / f.name)
+        for f in sorted(media.glob("*_overlay.png")) + sorted(media.glob("*_rollouts.mp4")) + sorted(media.glob("*.json")):
+            shutil.copyfile(f, dest / f.name)  # the JSON: which episodes the pictures show, and their outcomes
 
     return Step("media", task, f"render READ N={n} ({k} episodes: overlay + video)", argv,
                 made=lambda: any(dest.glob("*_rollouts.mp4")), after=publish)

@@ -109,6 +109,24 @@ def test_reads_rendered_episodes_are_shown_for_the_cell_they_belong_to(tmp_path)
     assert "**PB**" not in section and "other_overlay" not in section
 
 
+def test_rendered_episodes_are_counted_from_the_media_record(tmp_path):
+    """The media JSON published beside the pictures names the episodes they show: the caption counts
+    those episodes' outcomes in the cell, however many were rendered (without it: the first 8)."""
+    runs = tmp_path / "results"
+    outcomes = [False, True, True, False] + [True] * 8
+    _write(runs, "reach_target", "read_a", "spe_N100_now", outcomes)
+    media = runs / "reach_target" / "read_a" / "media"
+    media.mkdir()
+    (media / "spe_N100_now_overlay.png").write_bytes(b"png")
+    (media / "spe_N100_now.json").write_text(json.dumps({"seeds": [0, 1, 2], "success": [False, True, True]}))
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
+    assert "**RT** (reach_target): the first 3 test episodes, 2 succeeded." in out.read_text()
+    (media / "spe_N100_now.json").unlink()  # media from before the record: the pipeline's first 8
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
+    assert "**RT** (reach_target): the first 8 test episodes, 6 succeeded." in out.read_text()
+
+
 def test_failures_are_counted_by_mode_per_row(tmp_path):
     runs = tmp_path / "results"
     _write(runs, "reach_target", "read_a", "spe_N100_now", [True, False, False, True])

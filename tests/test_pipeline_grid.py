@@ -97,7 +97,8 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").exists()
     # the rendered episodes go to media/, apart from the evaluations a table reads
     media = tmp_path / "results" / "push_button" / "read" / "media"
-    assert sorted(f.name for f in media.iterdir()) == ["spe_N100_overlay.png", "spe_N100_rollouts.mp4"]
+    assert sorted(f.name for f in media.iterdir()) == ["spe_N100.json", "spe_N100_overlay.png", "spe_N100_rollouts.mp4"]
+    assert len(json.loads((media / "spe_N100.json").read_text())["seeds"]) == 4  # which episodes they show
     argv = next(a for m, a in runner.calls if m == "evaluate" and "--out" in a)
     assert argv[argv.index("--episodes") + 1] == "4" and argv[argv.index("--N") + 1] == "100"
     assert not (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N100_rollouts.mp4").exists()
