@@ -11,7 +11,11 @@ For each task (in the paper's order), each step runs only if its output is missi
   5. render READ's first --media-episodes test episodes at its largest N (motion overlay + rollout
      video, RESULTS/<task>/<run>/media/), checking their outcomes equal the full evaluation's;
   6. where READ scores below --diagnose-below %, evaluate it from the oracle's start too (cheat1_N<N>):
-     the evidence of whether retrieval or refinement limits the task.
+     the evidence of whether retrieval or refinement limits the task;
+  7. --protocols: READ's evaluations for the paper's other tables (oracle retrieval, poor retrieval,
+     perturbed images).
+--variant trains a method with its own config overrides in its own run folder (READ-O's two samplers,
+READ with the kinematics-aware autoencoder): a row of its own.
 Progress and an ETA cover the whole grid. A kill loses at most the step in progress; running the
 same command again skips what is done. An evaluation counts as done when RESULTS holds it on a test
 split whose replay is on record (RESULTS/<task>/verify/), so a fresh machine with only the committed
@@ -22,6 +26,9 @@ examples:
   python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic
   python -m experiments.pipeline --tasks all --shard 0/2        # and --shard 1/2 in a second shell
   python -m experiments.pipeline --tasks RT --methods read --read-N 0 10 100 --dry-run
+  python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic vpsde vpsde_cg read_l \
+      read_o_cd read_o_em --variant read_o_cd read_o read_o.sampler=cd --variant read_o_em read_o \
+      read_o.sampler=em --protocols oracle poor perturbed --read-N 0 1 10 100
 """
 
 from __future__ import annotations
@@ -33,13 +40,18 @@ from experiments import _cli
 
 
 def parser() -> argparse.ArgumentParser:
-    from readjax import methods
+    from readjax import methods, pipeline
     from readjax.config import preset_names
 
     p = argparse.ArgumentParser(prog="python -m experiments.pipeline", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--tasks", nargs="+", required=True, help="task names or codes, or 'all' (the 16)")
-    p.add_argument("--methods", nargs="+", default=["read", "deterministic"], choices=methods.names())
+    p.add_argument("--methods", nargs="+", default=["read", "deterministic"], metavar="METHOD",
+                   help=f"methods ({' '.join(methods.names())}) and --variant labels, in the order they run")
+    p.add_argument("--variant", nargs="+", action="append", default=[], metavar="ARG",
+                   help="LABEL METHOD [KEY=VALUE ...]: METHOD trained with these config overrides (after --set) "
+                        "in its own run folder LABEL, then evaluated as METHOD is; add LABEL to --methods, e.g. "
+                        "--variant read_o_em read_o read_o.sampler=em --variant read_kin read vae.kinematic=true")
     p.add_argument("--preset", default="cpu", choices=preset_names())
     p.add_argument("--data", default="data", help="dataset root")
     p.add_argument("--runs", default="runs", help="runs root")
@@ -60,6 +72,15 @@ def parser() -> argparse.ArgumentParser:
                    help="where READ at its largest --read-N succeeds on fewer than this %% of the test episodes, "
                         "evaluate it again at each --read-N from the oracle's start (the episode's own "
                         "demonstration): retrieval or refinement, which one limits the task (0: never)")
+    p.add_argument("--protocols", nargs="+", default=[], choices=sorted(pipeline.PROTOCOL_EVALUATIONS),
+                   metavar="PROTOCOL",
+                   help="READ's evaluations beyond the main table: "
+                        + "; ".join(f"{k}: {v}" for k, v in pipeline.PROTOCOL_EVALUATIONS.items()))
+    p.add_argument("--noise", type=float, default=pipeline.PipelineConfig.noise,
+                   help="the perturbed protocol's Gaussian noise std on the test RGB in [0, 1] (the paper does not "
+                        "state its level)")
+    p.add_argument("--brightness", type=float, default=pipeline.PipelineConfig.brightness,
+                   help="the perturbed protocol's brightness factor on the test RGB")
     p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
     p.add_argument("--dry-run", action="store_true",
                    help="list the steps, each done / skip (not needed) / todo; run nothing")
@@ -81,12 +102,16 @@ def main(argv=None) -> int:
     if any("=" not in r for r in args.run_name):
         raise ValueError(f"--run-name must look like METHOD=NAME, got {args.run_name}")
     run_names = tuple(tuple(r.split("=", 1)) for r in args.run_name)
+    if any(len(v) < 2 for v in args.variant):
+        raise ValueError(f"--variant takes LABEL METHOD [KEY=VALUE ...], got {[' '.join(v) for v in args.variant]}")
+    variants = tuple((v[0], v[1], tuple(v[2:])) for v in args.variant)
     cfg = pipeline.PipelineConfig(
         tasks=names, methods=tuple(args.methods), preset=args.preset, data=args.data, runs=args.runs,
         results=args.results, train_episodes=args.train_episodes, test_episodes=args.test_episodes,
         image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
         overrides=tuple(args.set), shard=shard, run_names=run_names,
-        media_episodes=args.media_episodes, diagnose_below=args.diagnose_below).validate()
+        media_episodes=args.media_episodes, diagnose_below=args.diagnose_below, variants=variants,
+        protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness).validate()
     steps = pipeline.plan_steps(cfg)
     if args.dry_run:
         for s in steps:

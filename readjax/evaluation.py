@@ -40,15 +40,17 @@ class EvalConfig:
     rounds: int | None = None  # refinements in a row, each from the previous plan; None = the run's sde.rounds
 
 
-def perturb_images(rgbd: np.ndarray, cfg: EvalConfig, seed: int) -> np.ndarray:
-    """Table 9's perturbed test images: Gaussian noise on RGB and a brightness factor."""
+def perturb_images(rgbd: np.ndarray, cfg: EvalConfig, seed: int, episode_seeds: np.ndarray) -> np.ndarray:
+    """Table 9's perturbed test images: Gaussian noise on RGB and a brightness factor. Each image's
+    noise is drawn from (``seed``, its episode's seed) alone, so an episode sees the same image in
+    any subset or order of the split."""
     if cfg.image_noise == 0 and cfg.brightness == 1.0:
         return rgbd
-    rng = np.random.default_rng(seed)
-    out = rgbd.copy()
-    out[..., :3] = out[..., :3] * cfg.brightness + rng.normal(scale=cfg.image_noise, size=out[..., :3].shape)
-    out[..., :3] = np.clip(out[..., :3], 0, 1)
-    return out.astype(np.float32)
+    out = rgbd.astype(np.float32, copy=True)
+    for i, episode in enumerate(np.asarray(episode_seeds)):
+        noise = np.random.default_rng([seed, int(episode)]).normal(scale=cfg.image_noise, size=out[i, ..., :3].shape)
+        out[i, ..., :3] = np.clip(out[i, ..., :3] * cfg.brightness + noise, 0, 1)
+    return out
 
 
 def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval", progress: bool = True) -> dict:
@@ -61,7 +63,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     check_scene_images(env, ds)  # before any planning: a mismatch wastes no time
     ds = ds.resized(planner.image_size)
     scenes = ds.scenes
-    images = perturb_images(ds.rgbd, cfg, cfg.seed)
+    images = perturb_images(ds.rgbd, cfg, cfg.seed, ds.seeds)
     n_steps = planner.n_steps if cfg.N is None else cfg.N
     rounds = (planner.default_rounds if n_steps > 0 else 1) if cfg.rounds is None else cfg.rounds
     t0 = time.time()

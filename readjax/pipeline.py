@@ -14,6 +14,10 @@ READ's first few test episodes at its largest N are evaluated once more, apart, 
 overlay of retrieved / planned / ground-truth motions and a rollout video go to
 ``results/<task>/<run>/media/`` (the report shows them); their outcomes must equal the 100-episode
 evaluation's on the same seeds, since an episode's result may not depend on its batch.
+Beyond the main table: ``protocols`` adds READ's evaluations for the paper's other tables (oracle
+and poor retrieval, perturbed images: ``PROTOCOL_EVALUATIONS``), and ``variants`` trains a method with its own
+config overrides in a run folder of its own (READ-O's two samplers, READ with the kinematics-aware
+autoencoder), each a row of its own.
 """
 
 from __future__ import annotations
@@ -54,6 +58,13 @@ class PipelineConfig:
     run_names: tuple[tuple[str, str], ...] = ()  # (method, run name); a method not named: its own name
     media_episodes: int = 8  # READ's first k test episodes (at most all) rendered: overlay + video; 0: none
     diagnose_below: float = 80.0  # READ below this % at its largest N: also evaluated from the oracle's start
+    # (label, method, overrides): a method trained with its own config overrides, in its own run
+    # folder (default: the label), e.g. ("read_o_em", "read_o", ("read_o.sampler=em",)); its label
+    # goes in ``methods`` like a method's name
+    variants: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
+    protocols: tuple[str, ...] = ()  # READ's evaluations beyond the main table: keys of PROTOCOL_EVALUATIONS
+    noise: float = 0.05  # Table 9's perturbations (the paper does not state its levels): RGB noise std
+    brightness: float = 0.7  # and the brightness factor
 
     def validate(self) -> "PipelineConfig":
         names = tuple(tasks.canonical_name(t) for t in self.tasks)
@@ -64,18 +75,54 @@ class PipelineConfig:
             raise ValueError(f"--media-episodes must be >= 0, got {self.media_episodes}")
         if not 0.0 <= self.diagnose_below <= 100.0:
             raise ValueError(f"--diagnose-below is a percentage in [0, 100], got {self.diagnose_below}")
+        variant_labels = [label for label, _, _ in self.variants]
+        for label, method, sets in self.variants:
+            if label in methods.names() or variant_labels.count(label) > 1:
+                raise ValueError(f"--variant {label}: the label must differ from every method's name and "
+                                 f"every other variant's")
+            if not label or "/" in label:
+                raise ValueError(f"--variant {label!r}: a label is one folder name")
+            methods.module(method)
+            bad = [kv for kv in sets if "=" not in kv]
+            if bad:
+                raise ValueError(f"--variant {label}: overrides look like KEY=VALUE, got {bad}")
         for m in self.methods:
-            methods.module(m)
+            if m not in variant_labels:
+                methods.module(m)
+        from readjax import config
+        for m in self.methods:  # a bad override fails here, not hours into the grid
+            try:
+                config.override(config.presets(self.preset), self.overrides_of(m))
+            except ValueError as e:
+                raise ValueError(f"{m}: {e}") from None
         for m, name in self.run_names:
             if m not in self.methods:
                 raise ValueError(f"--run-name names method {m!r}, which is not among --methods {' '.join(self.methods)}")
             if not name or "/" in name:
                 raise ValueError(f"--run-name {m}={name!r}: a run name is one folder name")
+        unknown = [x for x in self.protocols if x not in PROTOCOL_EVALUATIONS]
+        if unknown:
+            raise ValueError(f"--protocols: unknown {unknown}; choose among {' '.join(PROTOCOL_EVALUATIONS)}")
+        if self.protocols and "read" not in self.methods:
+            raise ValueError("--protocols evaluate READ's run: add read to --methods")
+        if self.noise < 0 or self.brightness <= 0:
+            raise ValueError(f"--noise must be >= 0 and --brightness > 0, got {self.noise} and {self.brightness}")
+        if "perturbed" in self.protocols and (self.noise == 0 or self.brightness == 1.0):
+            raise ValueError("the perturbed protocol needs --noise > 0 and --brightness != 1 (else it repeats "
+                             "the clean evaluation)")
         return PipelineConfig(**{**self.__dict__, "tasks": names})
 
-    def run_name(self, method: str) -> str:
-        """The run folder of ``method`` on each task (``--run-name``; default the method's name)."""
-        return dict(self.run_names).get(method, method)
+    def run_name(self, label: str) -> str:
+        """The run folder of a method or variant on each task (``--run-name``; default its label)."""
+        return dict(self.run_names).get(label, label)
+
+    def method_of(self, label: str) -> str:
+        """The method a label of ``methods`` trains: a variant's, or the label itself."""
+        return next((m for lab, m, _ in self.variants if lab == label), label)
+
+    def overrides_of(self, label: str) -> tuple[str, ...]:
+        """Config overrides of a label's training: the grid's (``overrides``), then the variant's."""
+        return self.overrides + next((sets for lab, _, sets in self.variants if lab == label), ())
 
 
 @dataclass
@@ -110,12 +157,75 @@ def _summary_kept(split_dir: Path) -> int:
     return json.loads(f.read_text()).get("episodes_kept", 0) if f.exists() else 0
 
 
-def eval_args(method: str, read_n) -> list[tuple[int | None, list[str]]]:
-    """The evaluations of a method: (N, extra ``experiments.evaluate`` arguments); the command
-    names the result. READ at each N, the others once with their defaults (N None)."""
+@dataclass(frozen=True)
+class EvalRequest:
+    """One evaluation of a run on the test split: N refinement steps (None: the method's default,
+    for a method evaluated once), from SPE's top-1 or the oracle's ``rank``-th nearest training
+    demonstration, on clean images or with Gaussian ``noise`` / a ``brightness`` factor on the RGB.
+    ``experiments.evaluate`` names the result from these options."""
+    n: int | None = None
+    rank: int | None = None  # None: SPE top-1
+    noise: float = 0.0
+    brightness: float = 1.0
+
+    def argv(self) -> list[str]:
+        out = [] if self.n is None else ["--N", str(self.n)]
+        if self.rank is not None:
+            out += ["--retrieval", "cheat", "--rank", str(self.rank)]
+        if self.noise:
+            out += ["--noise", f"{self.noise:g}"]
+        if self.brightness != 1.0:
+            out += ["--brightness", f"{self.brightness:g}"]
+        return out
+
+    def label(self, method: str) -> str:
+        """The step's label (also the key of its recorded wall clock, which prices the ETA of the same
+        step on other tasks: the labels of earlier grids are kept)."""
+        where = ("" if self.rank is None else " from the oracle's start" if self.rank == 1
+                 else f" from the oracle's {_ordinal(self.rank)} neighbour")
+        images = "".join([f" on noisy images (std {self.noise:g})" if self.noise else "",
+                          f" at brightness x{self.brightness:g}" if self.brightness != 1.0 else ""])
+        steps = "" if self.n is None else f" --N {self.n}"
+        return f"evaluate {method}{where}{images}{steps}"
+
+    def matches(self, r: dict, method: str) -> bool:
+        return result_record.is_default_eval(r, method, self.n, self.rank, self.noise, self.brightness)
+
+
+def _ordinal(k: int) -> str:
+    return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
+
+
+# The paper's protocols beyond the main table, each a set of READ evaluations (``--protocols``);
+# ``top`` is the largest --read-N.
+PROTOCOL_EVALUATIONS = {
+    "oracle": "Tables 4 and 5: from the oracle's i-th nearest demonstration, i = 1, 3, 10, at N = 0 and top",
+    "poor": "Table 8: from the oracle's 500th neighbour (a poor retrieval) at N = 0, 1 and top",
+    "perturbed": "Table 9: SPE top-1 at N = top on test images with Gaussian noise (--noise) and with a "
+                 "brightness factor (--brightness)",
+}
+ORACLE_RANKS = (1, 3, 10)
+POOR_RANK = 500
+
+
+def eval_requests(method: str, read_n) -> list[EvalRequest]:
+    """The main-table evaluations of a method: READ at each N, the others once with their defaults."""
     if method == "read":
-        return [(n, ["--N", str(n)]) for n in read_n]
-    return [(None, [])]
+        return [EvalRequest(n) for n in read_n]
+    return [EvalRequest()]
+
+
+def protocol_requests(cfg: "PipelineConfig") -> list[EvalRequest]:
+    """READ's evaluations for ``cfg.protocols`` (see ``PROTOCOL_EVALUATIONS``), in that order, without repeats."""
+    top, out = max(cfg.read_N), []
+    for name in cfg.protocols:
+        if name == "oracle":
+            out += [EvalRequest(n, rank) for rank in ORACLE_RANKS for n in sorted({0, top})]
+        elif name == "poor":
+            out += [EvalRequest(n, POOR_RANK) for n in sorted({0, 1, top})]
+        elif name == "perturbed":
+            out += [EvalRequest(top, noise=cfg.noise), EvalRequest(top, brightness=cfg.brightness)]
+    return list(dict.fromkeys(out))
 
 
 _FINGERPRINTS: dict[tuple, str] = {}  # (split, episodes, summary mtime) -> content hash
@@ -134,11 +244,11 @@ def split_fingerprint(split_dir: Path, episodes: int) -> str | None:
     return _FINGERPRINTS[key]
 
 
-def finished_evaluation(results: Path, task: str, run_name: str, method: str, n: int | None,
-                        episodes: int, oracle_rank: int | None = None) -> dict | None:
+def finished_evaluation(results: Path, task: str, run_name: str, method: str, request: EvalRequest,
+                        episodes: int) -> dict | None:
     """The evaluation a step asks for, if ``results/<task>/<run>/eval/`` holds it: ``method``'s
-    default evaluation at N = ``n`` (``result_record.is_default_eval``; from the oracle's
-    ``oracle_rank``-th neighbour where given) over ``episodes`` test episodes, on a test split whose
+    evaluation ``request`` (its default one at that N, start and images:
+    ``result_record.is_default_eval``) over ``episodes`` test episodes, on a test split whose
     ground-truth replay is on record at 100 %."""
     for f in sorted((results / task / run_name / "eval").glob("*.json")):
         try:
@@ -146,7 +256,7 @@ def finished_evaluation(results: Path, task: str, run_name: str, method: str, n:
         except json.JSONDecodeError:
             continue
         if (r.get("task") == task and r.get("episodes") == episodes
-                and result_record.is_default_eval(r, method, n, oracle_rank)
+                and request.matches(r, method)
                 and verification.evaluation_verified(results, r)):
             return r
     return None
@@ -175,26 +285,25 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                         results, task, split_fingerprint(d, c), c)))
         steps += prepare
         outputs: list[Step] = []  # the task's evaluations and media: what the rest is for
-        for method in cfg.methods:
-            run = runs / task / cfg.run_name(method)
+        for label in cfg.methods:
+            method = cfg.method_of(label)
+            run = runs / task / cfg.run_name(label)
             marker = run / "pipeline_trained.json"
-            sets = sum((["--set", s] for s in cfg.overrides), [])
-            train = Step("train", task, f"train {method}", [
+            sets = sum((["--set", s] for s in cfg.overrides_of(label)), [])
+            train = Step("train", task, f"train {label}", [
                 python, "-m", "experiments.train", "--task", task, "--model", method, "--name", run.name,
                 "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"] + sets, made=marker.exists,
                 after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
-            uses: list[Step] = []
-            for n, extra in eval_args(method, cfg.read_N):
-                argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", str(data),
-                        "--episodes", str(cfg.test_episodes), "--videos", "0", "--quiet"] + extra
-                uses.append(Step("evaluate", task, f"evaluate {method} {' '.join(extra) or ''}".strip(), argv,
-                                 made=lambda task=task, run=run, method=method, n=n: finished_evaluation(
-                                     results, task, run.name, method, n, cfg.test_episodes) is not None,
-                                 after=lambda run=run: copy_results(run, results)))
-            if method == "read" and cfg.media_episodes and max(cfg.read_N) > 0:
-                uses.append(media_step(cfg, task, run, python))
-            if method == "read" and cfg.diagnose_below > 0:
-                uses += oracle_steps(cfg, task, run, python)
+            uses = [evaluate_step(cfg, task, run, method, request, python, shown=label)
+                    for request in eval_requests(method, cfg.read_N)]
+            if label == "read":  # READ itself, not a variant: media, diagnosis and the paper's protocols
+                if cfg.media_episodes and max(cfg.read_N) > 0:
+                    uses.append(media_step(cfg, task, run, python))
+                protocol = protocol_requests(cfg)
+                if cfg.diagnose_below > 0:
+                    uses += [step for n, step in zip(cfg.read_N, oracle_steps(cfg, task, run, python))
+                             if EvalRequest(n, 1) not in protocol]  # the oracle protocol runs it anyway
+                uses += [evaluate_step(cfg, task, run, method, request, python) for request in protocol]
             train.users = uses
             steps += [train] + uses
             outputs += uses
@@ -203,6 +312,20 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
     for s in steps:
         s.timing = results / s.task / TIMING_FILE
     return steps
+
+
+def evaluate_step(cfg: PipelineConfig, task: str, run: Path, method: str, request: EvalRequest, python: str,
+                  label_suffix: str = "", wanted: Callable[[], bool] = lambda: True, shown: str | None = None) -> Step:
+    """Evaluate ``run`` (a ``method`` run, labelled ``shown``: a variant's label) as ``request`` asks on
+    the task's first ``cfg.test_episodes`` test episodes; done when ``results/`` holds that evaluation
+    on a verified split (copied there after it runs)."""
+    results = Path(cfg.results)
+    argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", cfg.data,
+            "--episodes", str(cfg.test_episodes), "--videos", "0", "--quiet"] + request.argv()
+    return Step("evaluate", task, request.label(shown or method) + label_suffix, argv,
+                made=lambda: finished_evaluation(results, task, run.name, method, request,
+                                                 cfg.test_episodes) is not None,
+                after=lambda: copy_results(run, results), wanted=wanted)
 
 
 TIMING_FILE = "pipeline_timing.json"
@@ -238,20 +361,11 @@ def oracle_steps(cfg: PipelineConfig, task: str, run: Path, python: str) -> list
     results, top = Path(cfg.results), max(cfg.read_N)
 
     def weak() -> bool:
-        r = finished_evaluation(results, task, run.name, "read", top, cfg.test_episodes)
+        r = finished_evaluation(results, task, run.name, "read", EvalRequest(top), cfg.test_episodes)
         return r is None or 100.0 * r["success_rate"] < cfg.diagnose_below  # not evaluated yet: assume so
 
-    steps = []
-    for n in cfg.read_N:
-        argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", cfg.data,
-                "--episodes", str(cfg.test_episodes), "--videos", "0", "--retrieval", "cheat", "--rank", "1",
-                "--N", str(n), "--quiet"]
-        steps.append(Step("evaluate", task, f"evaluate read from the oracle's start --N {n} "
-                                            f"(READ below {cfg.diagnose_below:g} %)", argv,
-                          made=lambda n=n: finished_evaluation(results, task, run.name, "read", n, cfg.test_episodes,
-                                                               oracle_rank=1) is not None,
-                          after=lambda: copy_results(run, results), wanted=weak))
-    return steps
+    return [evaluate_step(cfg, task, run, "read", EvalRequest(n, 1), python,
+                          label_suffix=f" (READ below {cfg.diagnose_below:g} %)", wanted=weak) for n in cfg.read_N]
 
 
 MEDIA_VIDEOS = 4  # rollouts side by side in a task's video

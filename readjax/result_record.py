@@ -65,14 +65,17 @@ def _run_sde(r: dict) -> dict:
     return with_defaults(r.get("configs") or {"sde": {}}).get("sde", {})
 
 
-def _clean_spe_top1(r: dict, n: int | None, oracle_rank: int | None = None) -> bool:
-    """Clean images, SPE top-1 (``oracle_rank``: the oracle's neighbour of that rank instead), one
-    candidate, N = ``n``; ``n=None``: the planner's default N (what an iterative method runs when
-    not told; a one-pass method records None)."""
+def _clean_spe_top1(r: dict, n: int | None, oracle_rank: int | None = None, image_noise: float = 0.0,
+                    brightness: float = 1.0) -> bool:
+    """Clean images (or exactly the perturbation ``image_noise`` / ``brightness``), SPE top-1
+    (``oracle_rank``: the oracle's neighbour of that rank instead), one candidate, N = ``n``;
+    ``n=None``: the planner's default N (what an iterative method runs when not told; a one-pass
+    method records None)."""
     cfg = eval_config_of(r)
     start = ("spe", 1) if oracle_rank is None else ("cheat", oracle_rank)
-    return (protocol(r) == ("main" if oracle_rank is None else "oracle") and (cfg["retrieval"], cfg["rank"]) == start
-            and cfg["candidates"] == 1 and (cfg["N"] in (None, DEFAULT_N) if n is None else cfg["N"] == n))
+    images = (cfg["image_noise"], cfg["brightness"]) == (image_noise, brightness)
+    return (images and (cfg["retrieval"], cfg["rank"]) == start and cfg["candidates"] == 1
+            and (cfg["N"] in (None, DEFAULT_N) if n is None else cfg["N"] == n))
 
 
 def is_spe_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
@@ -81,12 +84,14 @@ def is_spe_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
     return _clean_spe_top1(r, n) and (n == 0 or _refinement(r) == tuple(refinement))
 
 
-def is_default_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None) -> bool:
+def is_default_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None,
+                    image_noise: float = 0.0, brightness: float = 1.0) -> bool:
     """Whether ``r`` is what ``experiments.evaluate --run RUN [--N n]`` writes for a ``method`` run
-    when told nothing else: clean images, SPE top-1 (``oracle_rank``: ``--retrieval cheat --rank``
-    that), one candidate, N = ``n`` (None: the method's default) and the refinement its run's
-    configs name (one round of none for a method without READ's update)."""
-    if r.get("method") != method or not _clean_spe_top1(r, n, oracle_rank):
+    when told nothing else: clean images (``image_noise`` / ``brightness``: ``--noise`` /
+    ``--brightness`` those), SPE top-1 (``oracle_rank``: ``--retrieval cheat --rank`` that), one
+    candidate, N = ``n`` (None: the method's default) and the refinement its run's configs name (one
+    round of none for a method without READ's update)."""
+    if r.get("method") != method or not _clean_spe_top1(r, n, oracle_rank, image_noise, brightness):
         return False
     update, rounds = _refinement(r)
     if n == 0:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 from pathlib import Path
@@ -36,7 +37,7 @@ class FakeRunner:
     def __init__(self, verify_rate=1.0, media_outcome=1, machine="a", read_top=1):
         self.calls, self.verify_rate, self.media_outcome, self.machine = [], verify_rate, media_outcome, machine
         self.read_top = read_top  # READ's outcome in every episode at N = 100 from SPE's start
-        self.methods = {}
+        self.methods, self.sets = {}, {}
 
     def __call__(self, argv):
         mod = argv[2].split(".")[1]
@@ -56,20 +57,27 @@ class FakeRunner:
             run = Path(arg("--out")) / arg("--task") / arg("--name")
             run.mkdir(parents=True, exist_ok=True)
             self.methods[str(run)] = arg("--model")
+            self.sets[run.name] = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
         elif mod == "evaluate":
             run = Path(arg("--run"))
             ev = Path(arg("--out")) if "--out" in argv else run / "eval"
             ev.mkdir(parents=True, exist_ok=True)
             method, n = self.methods[str(run)], int(arg("--N")) if "--N" in argv else None
             oracle = "--retrieval" in argv and arg("--retrieval") == "cheat"
-            name = (f"cheat{arg('--rank')}_N{n}" if oracle else f"spe_N{n}") if n is not None else "direct"
+            rank = int(arg("--rank")) if oracle else 1
+            noise = float(arg("--noise")) if "--noise" in argv else 0.0
+            bright = float(arg("--brightness")) if "--brightness" in argv else 1.0
+            name = (f"cheat{rank}_N{n}" if oracle else f"spe_N{n}") if n is not None else "direct"
+            name += (f"_noise{noise:g}" if noise else "") + (f"_bright{bright:g}" if bright != 1.0 else "")
             k = int(arg("--episodes"))
             ok = self.media_outcome if "--out" in argv else self.read_top if (n == 100 and not oracle) else 1
             fp = json.loads((Path(arg("--data")) / run.parent.name / "test" / "summary.json").read_text())["fingerprint"]
             (ev / f"{name}.json").write_text(json.dumps({
                 "task": run.parent.name, "method": method, "name": name, "episodes": k, "test_fingerprint": fp,
                 "success_rate": float(ok), "eval_config": {
-                    "episodes": k, "N": n, "retrieval": "cheat" if oracle else "spe", "rank": 1, "candidates": 1, "rounds": 1,
+                    "episodes": k, "N": n, "retrieval": "cheat" if oracle else "spe", "rank": rank, "candidates": 1,
+                    "rounds": 1,
+                    "image_noise": noise, "brightness": bright,
                                 "refine_update": "renoise" if method == "read" else None},
                 "configs": {"sde": {"update": "renoise", "rounds": 1}} if method == "read" else {},
                 "seeds": list(range(1000000, 1000000 + k)), "success": [ok] * k}))
@@ -213,6 +221,76 @@ def test_a_weak_task_is_evaluated_from_the_oracles_start(tmp_path):
         _cfg(tmp_path, diagnose_below=120.0)
 
 
+def test_variants_train_with_their_own_overrides_in_their_own_runs(tmp_path):
+    """A --variant is its method trained with extra overrides (after the grid's) in a run folder of its
+    own, evaluated as its method is: its own row; READ's media and diagnosis stay with READ itself."""
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read", "read_o_em", "read_kin"), overrides=("train.steps=7",),
+               variants=(("read_o_em", "read_o", ("read_o.sampler=em",)), ("read_kin", "read", ("vae.kinematic=true",))))
+    runner = FakeRunner(read_top=0, media_outcome=0)
+    steps = pipeline.plan_steps(cfg)
+    assert [Path(s.argv[s.argv.index("--run") + 1]).name for s in steps if s.kind == "media"] == ["read"]
+    assert [s.label for s in steps if s.kind in ("train", "evaluate") and "read_" in s.label] == [
+        "train read_o_em", "evaluate read_o_em", "train read_kin", "evaluate read_kin --N 0", "evaluate read_kin --N 100"]
+    pipeline.run_steps(steps, log=lambda m: None, runner=runner)
+    trained = {a[a.index("--name") + 1]: a[a.index("--model") + 1] for m, a in runner.calls if m == "train"}
+    assert trained == {"read": "read", "read_o_em": "read_o", "read_kin": "read"}
+    assert runner.sets == {"read": ["train.steps=7"], "read_o_em": ["train.steps=7", "read_o.sampler=em"],
+                           "read_kin": ["train.steps=7", "vae.kinematic=true"]}
+    res = tmp_path / "results" / "reach_target"
+    assert sorted(f.name for f in (res / "read_o_em" / "eval").iterdir()) == ["direct.json"]
+    assert sorted(f.name for f in (res / "read_kin" / "eval").iterdir()) == ["spe_N0.json", "spe_N100.json"]
+    assert sorted(f.name for f in (res / "read" / "eval").iterdir()) == ["cheat1_N0.json", "cheat1_N100.json",
+                                                                         "spe_N0.json", "spe_N100.json"]
+    assert [p.parent.name for p in res.glob("*/media")] == ["read"]
+    assert all(s.status() == "done" for s in pipeline.plan_steps(cfg))
+    for bad, match in [(dict(variants=(("read", "read", ()),)), "must differ"),
+                       (dict(variants=(("v", "nope", ()),)), "nope"),
+                       (dict(methods=("v",), variants=(("v", "read", ("vae.nofield=1",)),)), "v: .*no field"),
+                       (dict(methods=("v",), variants=(("v", "read", ("kinematic",)),)), "KEY=VALUE"),
+                       (dict(overrides=("steps=x",)), "read: ")]:
+        with pytest.raises(ValueError, match=match):
+            _cfg(tmp_path, **bad)
+
+
+def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
+    """--protocols oracle poor perturbed: READ from the oracle's 1st / 3rd / 10th neighbour at N = 0 and
+    the top N (Tables 4, 5), from its 500th at N = 0 / 1 / top (Table 8), and on noisy and darkened
+    images at the top N (Table 9); each once (the diagnosis's oracle start is not repeated), each
+    done when results/ holds it."""
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",), media_episodes=0, protocols=("oracle", "poor", "perturbed"),
+               noise=0.1, brightness=0.6)
+    steps = pipeline.plan_steps(cfg)
+    labels = [s.label for s in steps if s.kind == "evaluate"]
+    assert labels == ["evaluate read --N 0", "evaluate read --N 100",
+                      "evaluate read from the oracle's start --N 0", "evaluate read from the oracle's start --N 100",
+                      "evaluate read from the oracle's 3rd neighbour --N 0",
+                      "evaluate read from the oracle's 3rd neighbour --N 100",
+                      "evaluate read from the oracle's 10th neighbour --N 0",
+                      "evaluate read from the oracle's 10th neighbour --N 100",
+                      "evaluate read from the oracle's 500th neighbour --N 0",
+                      "evaluate read from the oracle's 500th neighbour --N 1",
+                      "evaluate read from the oracle's 500th neighbour --N 100",
+                      "evaluate read on noisy images (std 0.1) --N 100", "evaluate read at brightness x0.6 --N 100"]
+    runner = FakeRunner(read_top=0)
+    pipeline.run_steps(steps, log=lambda m: None, runner=runner)
+    names = sorted(f.stem for f in (tmp_path / "results" / "reach_target" / "read" / "eval").glob("*.json"))
+    assert names == sorted(["spe_N0", "spe_N100", "cheat1_N0", "cheat1_N100", "cheat3_N0", "cheat3_N100", "cheat10_N0",
+                            "cheat10_N100", "cheat500_N0", "cheat500_N1", "cheat500_N100", "spe_N100_noise0.1",
+                            "spe_N100_bright0.6"])
+    again = FakeRunner()
+    assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=again)["ran"] == 0
+    assert not again.calls
+    # without --protocols the weak task's oracle start is still evaluated, as the diagnosis
+    diag = [s.label for s in pipeline.plan_steps(dataclasses.replace(cfg, protocols=())) if "oracle" in s.label]
+    assert diag == ["evaluate read from the oracle's start --N 0 (READ below 80 %)",
+                    "evaluate read from the oracle's start --N 100 (READ below 80 %)"]
+    for bad, match in [(dict(protocols=("table9",)), "unknown"),
+                       (dict(protocols=("oracle",), methods=("deterministic",)), "add read"),
+                       (dict(protocols=("perturbed",), noise=0.0), "noise > 0"), (dict(brightness=0.0), "brightness")]:
+        with pytest.raises(ValueError, match=match):
+            _cfg(tmp_path, **bad)
+
+
 def test_eta_prices_each_step_by_its_own_label(tmp_path):
     """The ETA uses the time of the same step on an earlier task, not the mean of its kind."""
     steps = [s for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))) if s.kind == "train"]
@@ -245,3 +323,10 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     assert _cli.run(pipeline_cli.main, argv + ["--run-name", "read"]) == 2
     assert "METHOD=NAME" in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, ["--tasks", "XX", "--dry-run"]) == 2
+    assert _cli.run(pipeline_cli.main, argv + ["--variant", "read_kin"]) == 2
+    assert "LABEL METHOD" in capsys.readouterr().err
+    variant = ["--methods", "read", "read_kin", "--variant", "read_kin", "read", "vae.kinematic=true",
+               "--protocols", "poor"]
+    assert _cli.run(pipeline_cli.main, argv + variant) == 0
+    out = capsys.readouterr().out
+    assert "todo  reach_target: train read_kin" in out and "500th neighbour --N 1" in out
