@@ -103,6 +103,9 @@ class PipelineConfig:
         unknown = [x for x in self.protocols if x not in PROTOCOL_EVALUATIONS]
         if unknown:
             raise ValueError(f"--protocols: unknown {unknown}; choose among {' '.join(PROTOCOL_EVALUATIONS)}")
+        if "poor" in self.protocols and self.train_episodes < POOR_RANK:
+            raise ValueError(f"the poor protocol retrieves the {POOR_RANK}th nearest training demonstration: "
+                             f"--train-episodes must be at least {POOR_RANK}, got {self.train_episodes}")
         if self.protocols and "read" not in self.methods:
             raise ValueError("--protocols evaluate READ's run: add read to --methods")
         if self.noise < 0 or self.brightness <= 0:

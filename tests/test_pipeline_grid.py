@@ -258,7 +258,7 @@ def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
     images at the top N (Table 9); each once (the diagnosis's oracle start is not repeated), each
     done when results/ holds it."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",), media_episodes=0, protocols=("oracle", "poor", "perturbed"),
-               noise=0.1, brightness=0.6)
+               noise=0.1, brightness=0.6, train_episodes=1000)
     steps = pipeline.plan_steps(cfg)
     labels = [s.label for s in steps if s.kind == "evaluate"]
     assert labels == ["evaluate read --N 0", "evaluate read --N 100",
@@ -286,7 +286,8 @@ def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
                     "evaluate read from the oracle's start --N 100 (READ below 80 %)"]
     for bad, match in [(dict(protocols=("table9",)), "unknown"),
                        (dict(protocols=("oracle",), methods=("deterministic",)), "add read"),
-                       (dict(protocols=("perturbed",), noise=0.0), "noise > 0"), (dict(brightness=0.0), "brightness")]:
+                       (dict(protocols=("perturbed",), noise=0.0), "noise > 0"), (dict(brightness=0.0), "brightness"),
+                       (dict(protocols=("poor",)), "at least 500")]:
         with pytest.raises(ValueError, match=match):
             _cfg(tmp_path, **bad)
 
