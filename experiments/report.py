@@ -10,6 +10,7 @@ examples:
   python -m experiments.report --runs runs/ --compare 'read: spe_N100'   # paired tests vs that row
   python -m experiments.report --runs results/ --compare 'read: retrieval only (N=0)' deterministic
   python -m experiments.report --runs results/ --main read_v3_5k deterministic_v3_5k   # the paper's main table
+  python -m experiments.report --runs results/ --claims read=read_v3_5k deterministic=deterministic_v3_5k
 """
 
 from __future__ import annotations
@@ -36,9 +37,14 @@ def parser() -> argparse.ArgumentParser:
                    help="open the report with the paper's main table: READ at N = 100 (with the --main-preset refinement) "
                         "and N = 0 from run READ_RUN, Deterministic from run DET_RUN, on every task that has "
                         "them, Avg12 / Avg16, the paper's READ beside them, and paired tests per task")
+    p.add_argument("--claims", nargs="+", default=None, metavar="ROLE=RUN",
+                   help="test the paper's claims (READ above each baseline, READ-O above READ-L, refinement above "
+                        "retrieval, recovery from a poor retrieval, robustness to noise and brightness) with paired "
+                        "tests, naming the run of each role: read, deterministic, vpsde, vpsde_cg, read_o, read_l "
+                        "(a role not named: the run of its own name), e.g. read=read_v3_5k")
     p.add_argument("--main-preset", default="cpu", choices=preset_names(),
-                   help="READ's cells in --main are evaluations with this preset's refinement (sde.update, "
-                        "sde.rounds)")
+                   help="READ's cells in --main and --claims are evaluations with this preset's refinement "
+                        "(sde.update, sde.rounds)")
     return p
 
 
@@ -47,14 +53,24 @@ def main(argv=None) -> None:
     from readjax import main_table
     from readjax.report import write_report
 
-    main_section = None
+    from readjax import claims
+
+    if args.claims is not None and any("=" not in c for c in args.claims):
+        raise ValueError(f"--claims takes ROLE=RUN pairs, got {args.claims}")
+    roles = {**{role: role for role in claims.ROLES}, **dict(c.split("=", 1) for c in args.claims or ())}
+    sections = []
     if args.main:
         read_run, det_run = args.main
+        sections.append(lambda results, chart: main_table.lines(results, read_run, det_run, chart,
+                                                                preset_name=args.main_preset))
+    if args.claims is not None:
+        sections.append(lambda results, chart: claims.lines(results, roles, preset_name=args.main_preset))
 
-        def main_section(results, chart):
-            return main_table.lines(results, read_run, det_run, chart, preset_name=args.main_preset)
+    def main_section(results, chart):  # the sections shown first: the main table, then the claims
+        return [line for section in sections for line in section(results, chart)]
 
-    text = write_report(args.runs, args.out, tuple(args.exclude), tuple(args.compare), main=main_section)
+    text = write_report(args.runs, args.out, tuple(args.exclude), tuple(args.compare),
+                        main=main_section if sections else None)
     print(text.split("## Provenance")[0])
     print(f"wrote {args.out}")
 

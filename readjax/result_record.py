@@ -84,20 +84,31 @@ def is_spe_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
     return _clean_spe_top1(r, n) and (n == 0 or _refinement(r) == tuple(refinement))
 
 
-def is_default_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None,
-                    image_noise: float = 0.0, brightness: float = 1.0) -> bool:
-    """Whether ``r`` is what ``experiments.evaluate --run RUN [--N n]`` writes for a ``method`` run
-    when told nothing else: clean images (``image_noise`` / ``brightness``: ``--noise`` /
-    ``--brightness`` those), SPE top-1 (``oracle_rank``: ``--retrieval cheat --rank`` that), one
-    candidate, N = ``n`` (None: the method's default) and the refinement its run's configs name (one
-    round of none for a method without READ's update)."""
+def is_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None, image_noise: float = 0.0,
+            brightness: float = 1.0, refinement: tuple[str, int] | None = None) -> bool:
+    """Whether ``r`` is ``method``'s evaluation at N = ``n`` (None: the method's default) with one
+    candidate, from SPE's top-1 (``oracle_rank``: the oracle's neighbour of that rank), on clean
+    images (or exactly ``image_noise`` / ``brightness``), refined (n > 0) with ``refinement``
+    (update, rounds), or where None with the refinement its run's configs name (one round of none
+    for a method without READ's update)."""
     if r.get("method") != method or not _clean_spe_top1(r, n, oracle_rank, image_noise, brightness):
         return False
     update, rounds = _refinement(r)
     if n == 0:
         return True
+    if refinement is not None:
+        return (update, rounds) == tuple(refinement)
     sde = _run_sde(r)
     return (update, rounds) == ((sde.get("update"), sde.get("rounds", 1)) if update is not None else (None, 1))
+
+
+def is_default_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None,
+                    image_noise: float = 0.0, brightness: float = 1.0) -> bool:
+    """Whether ``r`` is what ``experiments.evaluate --run RUN [--N n]`` writes for a ``method`` run
+    when told nothing else: clean images (``image_noise`` / ``brightness``: ``--noise`` /
+    ``--brightness`` those), SPE top-1 (``oracle_rank``: ``--retrieval cheat --rank`` that), one
+    candidate, N = ``n`` (None: the method's default) and the refinement its run's configs name."""
+    return is_eval(r, method, n, oracle_rank, image_noise, brightness)
 
 
 def is_direct_eval(r: dict) -> bool:

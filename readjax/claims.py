@@ -1,0 +1,156 @@
+"""The paper's claims about READ, each tested on committed results with exact paired McNemar tests.
+
+A claim compares two evaluations on the same test episodes: READ at N = 100 against a baseline, an
+ablation against the next, refinement against its own retrieval, READ from a poor retrieval, READ on
+perturbed images. Which run plays which part (``ROLES``) is named by the caller (``experiments.report
+--claims read=read_v3_5k deterministic=deterministic_v3_5k ...``), since ``results/`` holds many
+trainings per task. Per task the table gives the discordant episodes and p; pooled over the tasks
+where both sides exist (episodes paired by task and seed) it gives the verdict:
+
+* a claim that A beats B **holds** when A wins more discordant episodes with p < 0.05, is **not
+  shown** when p >= 0.05, and is **reversed** when B wins them with p < 0.05;
+* a claim that A is as good as B (robustness, recovery to READ's level) **holds** unless B wins with
+  p < 0.05.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from readjax import tasks
+from readjax.config import preset
+from readjax.report import mcnemar_p, paired_outcomes
+from readjax.result_record import eval_config_of, is_eval, protocol
+
+ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l")  # each a method's name
+TOP_N = 100  # READ's N in the paper's tables (Table 7, setting A)
+ALPHA = 0.05
+
+
+@dataclass(frozen=True)
+class Side:
+    """One side of a claim: the ``role``'s run evaluated at N = ``n`` (None: the method's default),
+    from SPE's top-1 or the oracle's ``rank``-th neighbour, on clean images or on images perturbed
+    by ``perturbed`` ("noise" or "brightness", at whatever level the run was evaluated)."""
+    role: str
+    n: int | None = None
+    rank: int | None = None
+    perturbed: str | None = None
+
+    def matches(self, r: dict, runs: dict[str, str], refinement: tuple[str, int] | None = None) -> bool:
+        """Whether ``r`` plays this side: the role's run (``runs``), READ refined with ``refinement``
+        (update, rounds; None: its run's own), the other methods as evaluated by default."""
+        if r.get("_run_name") != runs.get(self.role):
+            return False
+        refinement = refinement if self.role == "read" else None
+        if self.perturbed is None:
+            return is_eval(r, self.role, self.n, self.rank, refinement=refinement)
+        if protocol(r) != "perturbed":
+            return False
+        cfg = eval_config_of(r)
+        noisy, dimmed = cfg["image_noise"] > 0, cfg["brightness"] != 1.0
+        if (noisy, dimmed) != ((True, False) if self.perturbed == "noise" else (False, True)):
+            return False
+        return is_eval(r, self.role, self.n, self.rank, cfg["image_noise"], cfg["brightness"], refinement)
+
+
+@dataclass(frozen=True)
+class Claim:
+    text: str
+    a: Side
+    b: Side
+    kind: str = "better"  # "better": A > B; "level": A not below B
+
+
+READ = Side("read", TOP_N)
+CLAIMS = (
+    Claim("READ > Deterministic", READ, Side("deterministic")),
+    Claim("READ > VPSDE", READ, Side("vpsde")),
+    Claim("READ > VPSDE+CG", READ, Side("vpsde_cg")),
+    Claim("READ > READ-O", READ, Side("read_o")),
+    Claim("READ-O > READ-L", Side("read_o"), Side("read_l")),
+    Claim("refinement >> retrieval (READ N = 100 vs N = 0)", READ, Side("read", 0)),
+    Claim("recovery from a poor retrieval (i = 500: N = 100 vs N = 0)", Side("read", TOP_N, 500),
+          Side("read", 0, 500)),
+    Claim("from i = 500, N = 100 reaches READ's level (vs SPE's start)", Side("read", TOP_N, 500), READ, "level"),
+    Claim("robust to image noise (noisy vs clean images)", Side("read", TOP_N, perturbed="noise"), READ, "level"),
+    Claim("robust to brightness (changed vs clean images)", Side("read", TOP_N, perturbed="brightness"), READ,
+          "level"),
+)
+
+
+def _pick(results: list[dict], side: Side, runs: dict[str, str], refinement) -> dict[str, dict]:
+    """task -> the first result (in file order) that plays ``side``."""
+    out: dict[str, dict] = {}
+    for r in sorted(results, key=lambda r: r.get("_file", "")):
+        if side.matches(r, runs, refinement):
+            out.setdefault(r["task"], r)
+    return out
+
+
+def verdict(kind: str, wins: int, losses: int, p: float) -> str:
+    if wins + losses == 0 and kind == "better":
+        return "not shown (no discordant episode)"
+    if kind == "level":
+        return f"does not hold (significant loss, p = {p:.2g})" if losses > wins and p < ALPHA else "holds"
+    if p < ALPHA:
+        return "holds" if wins > losses else "reversed"
+    return f"not shown (p = {p:.2g})"
+
+
+def evaluate_claims(results: list[dict], runs: dict[str, str], refinement: tuple[str, int] | None = None,
+                    claims=CLAIMS) -> list[dict]:
+    """Per claim: per task (code -> (wins, losses, p)), pooled (wins, losses, p) over the tasks both
+    sides were measured on, and the verdict; claims with a side nobody ran are "not measured".
+    READ's refined evaluations are those with ``refinement`` (update, rounds; None: its run's own)."""
+    out = []
+    for claim in claims:
+        a, b = _pick(results, claim.a, runs, refinement), _pick(results, claim.b, runs, refinement)
+        per_task, pooled_a, pooled_b = {}, [], []
+        for task in [t for t in tasks.names() if t in a and t in b]:
+            pair = paired_outcomes(a[task], b[task])
+            if pair is None:
+                continue
+            u, v = pair
+            per_task[tasks.code_of(task)] = (int((u & ~v).sum()), int((~u & v).sum()), mcnemar_p(u, v))
+            pooled_a.append(u)
+            pooled_b.append(v)
+        if not per_task:
+            out.append({"claim": claim.text, "per_task": {}, "pooled": None, "verdict": "not measured"})
+            continue
+        u, v = np.concatenate(pooled_a), np.concatenate(pooled_b)
+        wins, losses, p = int((u & ~v).sum()), int((~u & v).sum()), mcnemar_p(u, v)
+        out.append({"claim": claim.text, "per_task": per_task, "pooled": (wins, losses, p),
+                    "verdict": verdict(claim.kind, wins, losses, p),
+                    "success": (100.0 * u.mean(), 100.0 * v.mean())})
+    return out
+
+
+def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu") -> list[str]:
+    """The claims section of the report (markdown lines); READ refined as preset ``preset_name`` does
+    (as the main table)."""
+    unknown = sorted(set(runs) - set(ROLES))
+    if unknown:
+        raise ValueError(f"--claims: unknown role(s) {', '.join(unknown)}; roles are {', '.join(ROLES)}")
+    sde = preset(preset_name)["sde"]
+    rows = evaluate_claims(results, runs, (sde.update, sde.rounds))
+    named = ", ".join(f"{role} = `{run}`" for role, run in runs.items())
+    out = ["## The paper's claims, tested", "",
+           f"Runs: {named}. Each claim pairs two evaluations on the same test episodes (READ at N = {TOP_N} "
+           f"with the {preset_name} preset's refinement, {sde.update} x {sde.rounds} rounds, as in the main table; "
+           "SPE top-1 unless an oracle rank is named); per task: episodes only the "
+           "first side solves / only the second, exact McNemar p; pooled over the tasks both sides ran. "
+           f"\"Better\" claims hold at p < {ALPHA}; \"level\" claims (robustness, recovery to READ's level) hold "
+           "unless the first side loses significantly.", "",
+           "| claim | per task | pooled success % (first / second) | pooled +/-, p | verdict |", "|---|---|---|---|---|"]
+    for row in rows:
+        if row["pooled"] is None:
+            out.append(f"| {row['claim']} | – | – | – | {row['verdict']} |")
+            continue
+        cells = "; ".join(f"{code} +{w}/-{l} (p={p:.2g})" for code, (w, l, p) in row["per_task"].items())
+        w, l, p = row["pooled"]
+        sa, sb = row["success"]
+        out.append(f"| {row['claim']} | {cells} | {sa:.1f} / {sb:.1f} | +{w} / -{l}, p={p:.2g} | {row['verdict']} |")
+    return out + [""]

@@ -1,0 +1,97 @@
+"""The paper's claims, tested on results: which evaluation plays each side, pooled paired tests,
+and the verdicts (holds / not shown / reversed; level claims hold unless the first side loses)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from experiments import _cli
+from experiments import report as report_cli
+from readjax import claims
+from readjax.config import preset
+
+SDE = preset("cpu")["sde"]
+
+
+def _result(task, run, method, success, n=100, rank=None, noise=0.0, brightness=1.0, rounds=None, name=None):
+    read = method == "read"
+    cfg = {"N": n, "retrieval": "spe" if rank is None else "cheat", "rank": rank or 1, "candidates": 1,
+           "image_noise": noise, "brightness": brightness,
+           "rounds": (SDE.rounds if rounds is None else rounds) if read else 1,
+           "refine_update": SDE.update if read else None}
+    name = name or f"{method}_{n}_{rank}_{noise}_{brightness}_{rounds}"
+    return {"task": task, "method": method, "name": name, "_run_name": run, "_file": f"{task}/{run}/{name}.json",
+            "seeds": list(range(len(success))), "success": list(success), "success_rate": sum(success) / len(success),
+            "episodes": len(success), "eval_config": cfg,
+            "configs": {"sde": {"update": "cold", "rounds": 1}} if read else {"resnet": {}}}
+
+
+def _by_claim(rows):
+    return {r["claim"]: r for r in rows}
+
+
+def test_read_against_a_baseline_pooled_over_tasks():
+    runs = {"read": "r", "deterministic": "d"}
+    results = [
+        _result("reach_target", "r", "read", [1] * 20),
+        _result("reach_target", "d", "deterministic", [0] * 12 + [1] * 8, n=None),
+        _result("push_button", "r", "read", [1] * 10),
+        _result("push_button", "d", "deterministic", [1] * 10, n=None),
+        # another refinement of the same run (the run's own, an older preset): not READ's cell
+        _result("push_button", "r", "read", [0] * 10, rounds=1, name="old"),
+    ]
+    rows = _by_claim(claims.evaluate_claims(results, runs, (SDE.update, SDE.rounds)))
+    row = rows["READ > Deterministic"]
+    assert row["per_task"] == {"RT": (12, 0, pytest.approx(2 * 0.5 ** 12)), "PB": (0, 0, 1.0)}
+    assert row["pooled"][:2] == (12, 0) and row["verdict"] == "holds"
+    assert row["success"] == (100.0, pytest.approx(60.0))
+    assert rows["READ > VPSDE"]["verdict"] == "not measured"
+    swapped = _by_claim(claims.evaluate_claims(results, {"read": "d", "deterministic": "r"}))
+    assert swapped["READ > Deterministic"]["verdict"] == "not measured"  # run d holds no READ evaluation
+
+
+def test_verdicts():
+    assert claims.verdict("better", 12, 0, 0.0005) == "holds"
+    assert claims.verdict("better", 0, 12, 0.0005) == "reversed"
+    assert claims.verdict("better", 3, 1, 0.62).startswith("not shown")
+    assert claims.verdict("better", 0, 0, 1.0).startswith("not shown")
+    assert claims.verdict("level", 1, 3, 0.62) == "holds"  # a loss within noise: level
+    assert claims.verdict("level", 0, 12, 0.0005).startswith("does not hold")
+
+
+def test_poor_retrieval_and_perturbed_images():
+    runs = {"read": "r"}
+    clean = [1] * 30
+    results = [
+        _result("reach_target", "r", "read", clean),
+        _result("reach_target", "r", "read", [1] * 29 + [0], rank=500),
+        _result("reach_target", "r", "read", [0] * 30, n=0, rank=500),
+        _result("reach_target", "r", "read", [1] * 28 + [0] * 2, noise=0.05),
+        _result("reach_target", "r", "read", [0] * 15 + [1] * 15, brightness=0.7),
+        _result("reach_target", "r", "read", [0] * 30, noise=0.05, brightness=0.7),  # both at once: neither row
+    ]
+    rows = _by_claim(claims.evaluate_claims(results, runs, (SDE.update, SDE.rounds)))
+    assert rows["recovery from a poor retrieval (i = 500: N = 100 vs N = 0)"]["verdict"] == "holds"
+    assert rows["from i = 500, N = 100 reaches READ's level (vs SPE's start)"]["verdict"] == "holds"
+    assert rows["robust to image noise (noisy vs clean images)"]["pooled"][:2] == (0, 2)
+    assert rows["robust to image noise (noisy vs clean images)"]["verdict"] == "holds"
+    assert rows["robust to brightness (changed vs clean images)"]["verdict"].startswith("does not hold")
+
+
+def test_cli_section_and_bad_roles(tmp_path, capsys):
+    root = tmp_path / "results"
+    for r in (_result("reach_target", "r5", "read", [1] * 10), _result("reach_target", "r5", "read", [0] * 10, n=0)):
+        d = root / r["task"] / r["_run_name"] / "eval"
+        d.mkdir(parents=True, exist_ok=True)
+        (d / f"{r['name']}.json").write_text(json.dumps({k: v for k, v in r.items() if not k.startswith("_")}))
+    out = tmp_path / "report.md"
+    assert _cli.run(report_cli.main, ["--runs", str(root), "--out", str(out), "--claims", "read=r5"]) == 0
+    text = out.read_text()
+    assert "## The paper's claims, tested" in text and "read = `r5`" in text
+    assert "| refinement >> retrieval (READ N = 100 vs N = 0) | RT +10/-0 (p=0.002)" in text
+    assert _cli.run(report_cli.main, ["--runs", str(root), "--out", str(out), "--claims", "reader=r5"]) == 2
+    assert "unknown role" in capsys.readouterr().err
+    assert _cli.run(report_cli.main, ["--runs", str(root), "--out", str(out), "--claims", "read"]) == 2
+    assert "ROLE=RUN" in capsys.readouterr().err
