@@ -7,6 +7,7 @@ Writes OUT/<task>/<name>/sweep.json, table.md and sweep.png.
 examples:
   python -m experiments.sweep --task reach_target --grid N=0,1,10,100 L=0.1,0.5,1.0
   python -m experiments.sweep --task PB --grid N=1,10,100 --episodes 50
+  python -m experiments.sweep --task RT --grid N=0,1,10,100 --results results/   # committed, with paired tests vs A
 """
 
 from __future__ import annotations
@@ -32,6 +33,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=_cli.positive_int, default=100)
     p.add_argument("--batch-size", type=_cli.positive_int, default=50)
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="fixed config override")
+    p.add_argument("--results", default=None,
+                   help="also write sweep.json, table.md and sweep.png to RESULTS/<task>/<name>/ (small; commit them: "
+                        "`experiments.report --runs RESULTS` shows the sweep)")
     p.add_argument("--quiet", action="store_true")
     return p
 
@@ -42,7 +46,7 @@ def main(argv=None) -> None:
 
     cfg = SweepConfig(task=args.task, grid=parse_grid(args.grid), model=args.model, preset=args.preset,
                       data=args.data, out=args.out, name=args.name, episodes=args.episodes,
-                      sets=tuple(args.set), batch_size=args.batch_size)
+                      sets=tuple(args.set), batch_size=args.batch_size, results=args.results)
     result = run_sweep(cfg, progress=not args.quiet)
     print(format_table7(result))
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from readjax import tasks
 from readjax.config import preset
-from readjax.report import mcnemar_p, paired_outcomes
+from readjax.paired import mcnemar_p, paired_outcomes
 from readjax.result_record import eval_config_of, is_eval, protocol
 
 ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l")  # each a method's name

@@ -18,7 +18,8 @@ from pathlib import Path
 
 from readjax import failure_modes, paper, tasks
 from readjax.config import preset
-from readjax.report import bar_chart, mcnemar_p, paired_outcomes
+from readjax.paired import discordant
+from readjax.report import bar_chart
 from readjax.result_record import is_direct_eval, is_spe_eval
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
@@ -78,15 +79,6 @@ def _with_averages(table: dict[str, float], measured: list[str]) -> dict[str, fl
     return table
 
 
-def paired(a: dict, b: dict) -> str:
-    """``+wins / -losses, p=...`` of result ``a`` against ``b`` on the episodes both ran."""
-    pair = paired_outcomes(a, b)
-    if pair is None:
-        return "no common episodes"
-    u, v = pair
-    return f"+{int((u & ~v).sum())} / -{int((~u & v).sum())}, p={mcnemar_p(u, v):.2g}"
-
-
 def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None = None,
           preset_name: str = "cpu") -> list[str]:
     """The main table section of the report (markdown lines); ``chart``: where to draw its bars;
@@ -136,7 +128,7 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
         read = rows[READ_ROW].get(task)
         if read is None:
             continue
-        cells = [paired(read, other[task]) if task in other else "–" for other in (rows[RETRIEVAL_ROW], rows[DET_ROW])]
+        cells = [discordant(read, other[task]) if task in other else "–" for other in (rows[RETRIEVAL_ROW], rows[DET_ROW])]
         out.append(f"| {code} | " + " | ".join(cells) + " |")
     out.append("")
     out += failure_lines({labels[k]: rows[k] for k in (READ_ROW, DET_ROW)})

@@ -6,15 +6,15 @@ from __future__ import annotations
 import fnmatch
 import json
 import re
-from math import comb
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from readjax import failure_modes, tasks, verification
+from readjax.paired import mcnemar_p, paired_outcomes
 from readjax.pipeline import timing_records
-from readjax.result_record import PROTOCOLS, by_seed, eval_config_of, protocol, with_defaults
+from readjax.result_record import PROTOCOLS, eval_config_of, protocol, with_defaults
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7
 
@@ -188,30 +188,6 @@ def provenance_lines(results: list[dict]) -> list[str]:
     return lines
 
 
-def mcnemar_p(a, b) -> float:
-    """Exact two-sided McNemar p-value for two methods' successes on the same episodes: a binomial
-    test on the discordant episodes (one succeeds, the other fails). 1.0 when none are discordant."""
-    a, b = np.asarray(a, bool), np.asarray(b, bool)
-    if a.shape != b.shape:
-        raise ValueError(f"paired outcomes must have the same episodes, got {a.shape} and {b.shape}")
-    n10, n01 = int((a & ~b).sum()), int((~a & b).sum())
-    n = n10 + n01
-    if n == 0:
-        return 1.0
-    tail = sum(comb(n, k) for k in range(min(n10, n01) + 1)) / 2**n
-    return min(1.0, 2 * tail)
-
-
-def paired_outcomes(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray] | None:
-    """Two results' successes (bool arrays) on the episodes both ran, matched by seed; None when
-    they share no episode."""
-    x, y = by_seed(a), by_seed(b)
-    common = sorted(set(x) & set(y))
-    if not common:
-        return None
-    return np.asarray([x[k] for k in common], bool), np.asarray([y[k] for k in common], bool)
-
-
 def paired_comparison(results: list[dict], reference: str) -> dict[str, dict[str, str]]:
     """Each row against the ``reference`` row (a label of the tables) on the episodes both ran:
     the difference in success points and the exact McNemar p-value, per task. With 100 episodes a
@@ -346,8 +322,9 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     results and a chart path beside ``out`` (``readjax.main_table.lines`` for the paper's main table)."""
     compare = (compare,) if isinstance(compare, str) else tuple(compare or ())
     results = collect(runs_root, exclude)
-    if not results:
-        raise FileNotFoundError(f"no evaluation results under {runs_root} (run experiments.evaluate first)")
+    if not results and not sweeps(runs_root):
+        raise FileNotFoundError(f"no evaluation results or sweeps under {runs_root} (run experiments.evaluate "
+                                f"or experiments.sweep first)")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     listed = [r for r in results if not r["_sweep_cell"]]

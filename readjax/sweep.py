@@ -18,6 +18,7 @@ import numpy as np
 
 from readjax import _runtime, config, evaluation, methods, tasks
 from readjax.data import store
+from readjax.paired import discordant
 from readjax.data.generate import GenerateConfig, generate
 from readjax.planner import Planner
 
@@ -63,6 +64,7 @@ class SweepConfig:
     episodes: int = 100
     sets: tuple = ()
     batch_size: int = 50
+    results: str | None = None  # also write sweep.json / table.md / sweep.png to RESULTS/<task>/<name>/
 
 
 def _label(v) -> str:
@@ -108,7 +110,8 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
                                              progress=progress)
             full = {**DEFAULTS, **values, "N": n}
             cells.append({**full, "run": str(run_dir), "success": result["success_rate"],
-                          "table": result["table"]})
+                          "table": result["table"], "seeds": result["seeds"],
+                          "outcomes": [int(x) for x in result["success"]]})
             if progress:
                 print(f"  {task} " + " ".join(f"{k}={_label(full[k])}" for k in DEFAULTS)
                       + f": {100 * result['success_rate']:.1f}%", flush=True)
@@ -118,22 +121,41 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         _runtime.release_compiled_if_crowded()
     out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
            "grid": cfg.grid, "episodes": cfg.episodes, "cells": cells}
-    sweep_dir.mkdir(parents=True, exist_ok=True)
-    (sweep_dir / "sweep.json").write_text(json.dumps(out, indent=2))
-    (sweep_dir / "table.md").write_text(format_table7(out))
-    plot_sweep(out, sweep_dir / "sweep.png")
+    for folder in [sweep_dir] + ([Path(cfg.results) / task / cfg.name] if cfg.results else []):
+        write_sweep(out, folder)
     return out
 
 
+def write_sweep(sweep: dict, folder: Path) -> None:
+    """sweep.json (every cell's settings, success and per-episode outcomes), table.md and sweep.png
+    in ``folder``: the run folder's copy, or the one under results/ that is committed and that
+    ``experiments.report --runs results/`` shows."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "sweep.json").write_text(json.dumps(sweep, indent=2))
+    (folder / "table.md").write_text(format_table7(sweep))
+    plot_sweep(sweep, folder / "sweep.png")
+
+
+def _is_default(cell: dict) -> bool:
+    return all(cell[k] == v for k, v in DEFAULTS.items())
+
+
 def format_table7(sweep: dict) -> str:
-    """The layout of the paper's Table 7: setting, N, K, L, T, success (%)."""
+    """The layout of the paper's Table 7: setting, N, K, L, T, success (%); where the cells carry
+    their per-episode outcomes and the sweep holds the paper's setting A, each other cell against A
+    on the same episodes (+ episodes only it solves / - only A solves, exact McNemar p)."""
     code = sweep["code"]
-    lines = [f"| setting | N | K | L | T | {code} |", "|---|---|---|---|---|---|"]
+    a = next((c for c in sweep["cells"] if _is_default(c) and "outcomes" in c), None)
+    lines = [f"| setting | N | K | L | T | {code} |" + (" vs A |" if a else ""),
+             "|---|---|---|---|---|---|" + ("---|" if a else "")]
     for i, c in enumerate(sweep["cells"]):
-        default = all(c[k] == v for k, v in DEFAULTS.items())
-        tag = "A (default)" if default else chr(ord("B") + i) if i < 25 else str(i)
-        lines.append(f"| {tag} | {c['N']} | {c['K']} | {_label(c['L'])} | {_label(c['T'])} | "
-                     f"{100 * c['success']:.1f} |")
+        tag = "A (default)" if _is_default(c) else chr(ord("B") + i) if i < 25 else str(i)
+        row = f"| {tag} | {c['N']} | {c['K']} | {_label(c['L'])} | {_label(c['T'])} | {100 * c['success']:.1f} |"
+        if a:
+            vs = ("–" if c is a or "outcomes" not in c else
+                  discordant({"seeds": c["seeds"], "success": c["outcomes"]}, {"seeds": a["seeds"], "success": a["outcomes"]}))
+            row += f" {vs} |"
+        lines.append(row)
     return "\n".join(lines) + "\n"
 
 

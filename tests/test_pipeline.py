@@ -253,11 +253,15 @@ def test_sweep_resumes_and_reports(run, tmp_path):
 
     data, _ = run
     argv = ["--task", "RT", "--grid", "N=0,1", "L=0.3,0.5", "--episodes", "2", "--batch-size", "2",
-            "--data", str(data), "--out", str(tmp_path), "--quiet"] + sum((["--set", s] for s in TINY), [])
+            "--data", str(data), "--out", str(tmp_path), "--quiet",
+            "--results", str(tmp_path / "committed")] + sum((["--set", s] for s in TINY), [])
     assert _cli.run(sweep_cli.main, argv) == 0
     sweep_dir = tmp_path / "reach_target" / "sweep"
     cells = json.loads((sweep_dir / "sweep.json").read_text())["cells"]
     assert [(c["N"], c["L"]) for c in cells] == [(0, 0.3), (1, 0.3), (0, 0.5), (1, 0.5)]
+    assert all(len(c["outcomes"]) == len(c["seeds"]) == 2 for c in cells)  # per episode, for paired tests
+    committed = tmp_path / "committed" / "reach_target" / "sweep"
+    assert json.loads((committed / "sweep.json").read_text())["cells"] == cells and (committed / "sweep.png").exists()
     assert (sweep_dir / "sweep.png").exists() and "| setting | N | K | L | T |" in (sweep_dir / "table.md").read_text()
     # the autoencoder is trained once and shared across L values
     assert (sweep_dir / "L0.5" / "vae" / "metrics.jsonl").read_text() == \
@@ -267,6 +271,8 @@ def test_sweep_resumes_and_reports(run, tmp_path):
     assert _cli.run(sweep_cli.main, argv) == 0  # a finished sweep recomputes nothing
     assert {f: f.stat().st_mtime_ns for f in stamps} == stamps
     out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(tmp_path / "committed"), "--out", str(out)]) == 0
+    assert "## Sweep: read on reach_target (2 episodes per cell)" in out.read_text()  # results/ alone suffices
     assert _cli.run(report_cli.main, ["--runs", str(tmp_path), "--out", str(out)]) == 0
     text = out.read_text()
     # a root holding only a sweep: its cells appear in the sweep's Table-7 layout, not as method rows

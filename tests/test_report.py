@@ -74,7 +74,7 @@ def test_rows_sort_numbers_by_value():
 
 
 def test_mcnemar_exact_values():
-    from readjax.report import mcnemar_p
+    from readjax.paired import mcnemar_p
 
     assert mcnemar_p([True] * 6 + [False] * 4, [False] * 6 + [False] * 4) == 2 / 64  # 6 discordant, one way
     assert mcnemar_p([True, False], [True, False]) == 1.0  # no discordant episodes

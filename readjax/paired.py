@@ -1,0 +1,45 @@
+"""Paired comparison of two evaluations on the same test episodes: the exact McNemar test.
+
+With 100 episodes a difference of a few points is usually noise; the test looks only at the
+discordant episodes (one side succeeds, the other fails), matched by episode seed."""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+from readjax.result_record import by_seed
+
+
+def mcnemar_p(a, b) -> float:
+    """Exact two-sided McNemar p-value for two methods' successes on the same episodes: a binomial
+    test on the discordant episodes (one succeeds, the other fails). 1.0 when none are discordant."""
+    a, b = np.asarray(a, bool), np.asarray(b, bool)
+    if a.shape != b.shape:
+        raise ValueError(f"paired outcomes must have the same episodes, got {a.shape} and {b.shape}")
+    n10, n01 = int((a & ~b).sum()), int((~a & b).sum())
+    n = n10 + n01
+    if n == 0:
+        return 1.0
+    tail = sum(comb(n, k) for k in range(min(n10, n01) + 1)) / 2**n
+    return min(1.0, 2 * tail)
+
+
+def paired_outcomes(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray] | None:
+    """Two results' successes (bool arrays) on the episodes both ran, matched by seed; None when
+    they share no episode."""
+    x, y = by_seed(a), by_seed(b)
+    common = sorted(set(x) & set(y))
+    if not common:
+        return None
+    return np.asarray([x[k] for k in common], bool), np.asarray([y[k] for k in common], bool)
+
+
+def discordant(a: dict, b: dict) -> str:
+    """``+wins / -losses, p=...`` of result ``a`` against ``b`` on the episodes both ran."""
+    pair = paired_outcomes(a, b)
+    if pair is None:
+        return "no common episodes"
+    u, v = pair
+    return f"+{int((u & ~v).sum())} / -{int((~u & v).sum())}, p={mcnemar_p(u, v):.2g}"

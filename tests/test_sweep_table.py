@@ -1,0 +1,31 @@
+"""Table 7's layout for a sweep: each cell against the paper's setting A on the same episodes."""
+
+from __future__ import annotations
+
+import json
+
+from readjax import sweep
+
+
+def _cell(n, outcomes, **kw):
+    return {**sweep.DEFAULTS, "N": n, **kw, "success": sum(outcomes) / len(outcomes),
+            "seeds": list(range(len(outcomes))), "outcomes": outcomes}
+
+
+def test_cells_are_paired_with_setting_a(tmp_path):
+    sw = {"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [0, 1, 100]}, "episodes": 10,
+          "cells": [_cell(0, [0] * 10), _cell(1, [1] * 5 + [0] * 5), _cell(100, [1] * 10)]}
+    lines = sweep.format_table7(sw).splitlines()
+    assert lines[0] == "| setting | N | K | L | T | RT | vs A |"
+    assert lines[2] == "| B | 0 | 3 | 0.5 | 2 | 0.0 | +0 / -10, p=0.002 |"
+    assert lines[3] == "| C | 1 | 3 | 0.5 | 2 | 50.0 | +0 / -5, p=0.062 |"
+    assert lines[4] == "| A (default) | 100 | 3 | 0.5 | 2 | 100.0 | – |"
+    # a sweep recorded before the outcomes were (or without setting A): no paired column
+    old = {**sw, "cells": [{k: v for k, v in c.items() if k not in ("seeds", "outcomes")} for c in sw["cells"]]}
+    assert "vs A" not in sweep.format_table7(old)
+    no_a = {**sw, "cells": sw["cells"][:2]}
+    assert "vs A" not in sweep.format_table7(no_a)
+    sweep.write_sweep(sw, tmp_path / "results" / "reach_target" / "sweep")
+    folder = tmp_path / "results" / "reach_target" / "sweep"
+    assert json.loads((folder / "sweep.json").read_text()) == sw
+    assert (folder / "table.md").read_text() == sweep.format_table7(sw) and (folder / "sweep.png").stat().st_size > 0
