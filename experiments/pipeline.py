@@ -22,13 +22,17 @@ split whose replay is on record (RESULTS/<task>/verify/), so a fresh machine wit
 results/ regenerates, verifies and trains only what an unfinished evaluation needs. --shard i/n runs every n-th task from the i-th, so n
 processes (or machines sharing the folders) split the grid.
 
+A run name whose evaluations in RESULTS were trained with another recipe (preset, --set, --variant)
+is refused before any work: name the grid's runs apart with --run-name.
+
 examples:
-  python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic
-  python -m experiments.pipeline --tasks all --shard 0/2        # and --shard 1/2 in a second shell
-  python -m experiments.pipeline --tasks RT --methods read --read-N 0 10 100 --dry-run
+  python -m experiments.pipeline --tasks all --run-name read=read_v3_5k --run-name deterministic=deterministic_v3_5k
+  python -m experiments.pipeline --tasks all --shard 0/2 ...    # and --shard 1/2 in a second shell
+  python -m experiments.pipeline --tasks RT --methods read --read-N 0 10 100 --results my_results --dry-run
   python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic vpsde vpsde_cg read_l \
       read_o_cd read_o_em --variant read_o_cd read_o read_o.sampler=cd --variant read_o_em read_o \
-      read_o.sampler=em --protocols oracle poor perturbed --read-N 0 1 10 100
+      read_o.sampler=em --protocols oracle poor perturbed --read-N 0 1 10 100 \
+      --run-name read=read_v3_5k --run-name deterministic=deterministic_v3_5k
 """
 
 from __future__ import annotations
@@ -112,7 +116,11 @@ def main(argv=None) -> int:
         overrides=tuple(args.set), shard=shard, run_names=run_names,
         media_episodes=args.media_episodes, diagnose_below=args.diagnose_below, variants=variants,
         protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness).validate()
-    steps = pipeline.plan_steps(cfg)
+    try:
+        steps = pipeline.plan_steps(cfg)
+    except pipeline.PipelineError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     if args.dry_run:
         for s in steps:
             print(f"{s.status()}  {s.task}: {s.label}")

@@ -247,6 +247,59 @@ def split_fingerprint(split_dir: Path, episodes: int) -> str | None:
     return _FINGERPRINTS[key]
 
 
+DATA_DERIVED = {"denoiser": ("motion_mean", "motion_std")}  # filled from the training set, not the recipe
+
+
+def recipe(cfg: PipelineConfig, label: str) -> dict:
+    """Every config section a ``label`` run of this grid is trained with (the preset and the
+    overrides), as a result JSON records it."""
+    from readjax import config
+    configs = config.override(config.presets(cfg.preset), cfg.overrides_of(label))
+    sections = [k for k in configs if k != "train"]
+    return json.loads(json.dumps(config.configs_to_dict(configs, sections)))
+
+
+def recipe_differences(recorded: dict, wanted: dict) -> list[str]:
+    """The ``section.field`` names in which a result's recorded configs differ from ``wanted``, over
+    the sections the result records; fields a run predates count at their defaults, and
+    inference-only (``config.INFERENCE_ONLY``) and data-derived (``DATA_DERIVED``) fields are not the
+    recipe."""
+    from readjax.config import INFERENCE_ONLY
+    recorded = result_record.with_defaults(recorded)
+    out = []
+    for section, values in recorded.items():
+        if not isinstance(values, dict):
+            continue
+        skip = set(INFERENCE_ONLY.get(section, ())) | set(DATA_DERIVED.get(section, ()))
+        want = wanted.get(section, {})
+        out += [f"{section}.{k}" for k in sorted((set(values) | set(want)) - skip) if values.get(k) != want.get(k)]
+    return out
+
+
+def check_recipes(cfg: PipelineConfig) -> None:
+    """Refuse a grid whose run folders in ``results/`` hold evaluations of another recipe: the
+    finished ones would be counted as this grid's, and a run retrained on another machine under the
+    same name would mix two recipes in one row. Nothing is run or written."""
+    results = Path(cfg.results)
+    i, n = cfg.shard
+    for task in cfg.tasks[i::n]:
+        for label in cfg.methods:
+            run = cfg.run_name(label)
+            wanted = None
+            for f in sorted((results / task / run / "eval").glob("*.json")):
+                try:
+                    recorded = json.loads(f.read_text()).get("configs") or {}
+                except json.JSONDecodeError:
+                    continue
+                wanted = wanted or recipe(cfg, label)
+                diff = recipe_differences(recorded, wanted)
+                if diff:
+                    raise PipelineError(
+                        f"{f} was trained with another recipe than this grid's {label} (differs in "
+                        f"{', '.join(diff)}): name this grid's runs apart (--run-name {label}=NEW_NAME) or "
+                        f"use the same --preset / --set / --variant overrides")
+
+
 def finished_evaluation(results: Path, task: str, run_name: str, method: str, request: EvalRequest,
                         episodes: int) -> dict | None:
     """The evaluation a step asks for, if ``results/<task>/<run>/eval/`` holds it: ``method``'s
@@ -268,7 +321,9 @@ def finished_evaluation(results: Path, task: str, run_name: str, method: str, re
 def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
     """The grid's steps in order, this shard's tasks only. A step that only feeds others (generate,
     verify, train) also counts as done once everything it feeds is: a task whose evaluations and
-    media are all in ``results/`` needs no dataset, replay or checkpoint on this machine."""
+    media are all in ``results/`` needs no dataset, replay or checkpoint on this machine. Refused
+    (``check_recipes``) where ``results/`` holds a run of the same name trained another way."""
+    check_recipes(cfg)
     data, runs, results = Path(cfg.data), Path(cfg.runs), Path(cfg.results)
     i, n = cfg.shard
     steps: list[Step] = []

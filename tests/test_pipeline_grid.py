@@ -11,7 +11,7 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import pipeline, report, verification
+from readjax import config, pipeline, report, verification
 
 
 def _cfg(tmp_path, **kw):
@@ -37,7 +37,7 @@ class FakeRunner:
     def __init__(self, verify_rate=1.0, media_outcome=1, machine="a", read_top=1):
         self.calls, self.verify_rate, self.media_outcome, self.machine = [], verify_rate, media_outcome, machine
         self.read_top = read_top  # READ's outcome in every episode at N = 100 from SPE's start
-        self.methods, self.sets = {}, {}
+        self.methods, self.sets, self.recipes = {}, {}, {}
 
     def __call__(self, argv):
         mod = argv[2].split(".")[1]
@@ -57,6 +57,10 @@ class FakeRunner:
             run = Path(arg("--out")) / arg("--task") / arg("--name")
             run.mkdir(parents=True, exist_ok=True)
             self.methods[str(run)] = arg("--model")
+            sets = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
+            configs = config.override(config.presets(arg("--preset")), sets)
+            self.recipes[str(run)] = json.loads(json.dumps(config.configs_to_dict(
+                configs, [k for k in configs if k != "train"])))
             self.sets[run.name] = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
         elif mod == "evaluate":
             run = Path(arg("--run"))
@@ -79,7 +83,9 @@ class FakeRunner:
                     "rounds": 1,
                     "image_noise": noise, "brightness": bright,
                                 "refine_update": "renoise" if method == "read" else None},
-                "configs": {"sde": {"update": "renoise", "rounds": 1}} if method == "read" else {},
+                "configs": {**self.recipes.get(str(run), {}), "sde": {
+                    **self.recipes.get(str(run), {}).get("sde", {}), "update": "renoise", "rounds": 1}}
+                if method == "read" else self.recipes.get(str(run), {}),
                 "seeds": list(range(1000000, 1000000 + k)), "success": [ok] * k}))
             (ev / f"{name}_overlay.png").write_bytes(b"png")
             if int(arg("--videos")):
@@ -292,6 +298,29 @@ def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
             _cfg(tmp_path, **bad)
 
 
+def test_a_run_name_of_another_recipe_is_refused(tmp_path, capsys):
+    """results/ holding a run of the same name trained another way: the grid refuses before any
+    work, since its finished evaluations would count as this recipe's; the fields that change
+    inference only, or that training fills from the data, are not the recipe."""
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",), media_episodes=0)
+    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    f = tmp_path / "results" / "reach_target" / "read" / "eval" / "spe_N0.json"
+    r = json.loads(f.read_text())
+    r["configs"]["sde"].update(update="cold", rounds=3)  # inference only
+    r["configs"]["denoiser"]["motion_std"] = [0.1] * 10  # from the training set
+    f.write_text(json.dumps(r))
+    assert all(s.done() for s in pipeline.plan_steps(cfg))
+    with pytest.raises(pipeline.PipelineError, match=r"another recipe .*differs in sde\.lam\).*--run-name read=NEW_NAME"):
+        pipeline.plan_steps(dataclasses.replace(cfg, overrides=("L=0.1",)))
+    assert pipeline.plan_steps(dataclasses.replace(cfg, overrides=("L=0.1",), run_names=(("read", "read_L01"),)))
+    r["configs"]["train"]["steps"] = 7
+    f.write_text(json.dumps(r))
+    argv = ["--tasks", "RT", "--methods", "read", "--data", cfg.data, "--runs", cfg.runs, "--results", cfg.results,
+            "--dry-run"]
+    assert _cli.run(pipeline_cli.main, argv) == 1
+    assert "differs in train.steps" in capsys.readouterr().err
+
+
 def test_eta_prices_each_step_by_its_own_label(tmp_path):
     """The ETA uses the time of the same step on an earlier task, not the mean of its kind."""
     steps = [s for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))) if s.kind == "train"]
@@ -316,7 +345,8 @@ def test_shards_split_the_tasks(tmp_path):
 
 
 def test_cli_dry_run_and_errors(tmp_path, capsys):
-    argv = ["--tasks", "RT", "--data", str(tmp_path / "d"), "--runs", str(tmp_path / "r"), "--dry-run"]
+    argv = ["--tasks", "RT", "--data", str(tmp_path / "d"), "--runs", str(tmp_path / "r"), "--results",
+            str(tmp_path / "res"), "--dry-run"]
     assert _cli.run(pipeline_cli.main, argv) == 0
     assert "todo  reach_target: generate test 100" in capsys.readouterr().out
     assert _cli.run(pipeline_cli.main, argv + ["--shard", "2/2"]) == 2
