@@ -21,7 +21,7 @@ import numpy as np
 
 from readjax import tasks
 from readjax.config import preset
-from readjax.paired import mcnemar_p, paired_outcomes
+from readjax.paired import counts, paired_outcomes
 from readjax.result_record import eval_config_of, is_eval, protocol
 
 ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l")  # each a method's name
@@ -113,15 +113,14 @@ def evaluate_claims(results: list[dict], runs: dict[str, str], refinement: tuple
             pair = paired_outcomes(a[task], b[task])
             if pair is None:
                 continue
-            u, v = pair
-            per_task[tasks.code_of(task)] = (int((u & ~v).sum()), int((~u & v).sum()), mcnemar_p(u, v))
-            pooled_a.append(u)
-            pooled_b.append(v)
+            per_task[tasks.code_of(task)] = counts(*pair)
+            pooled_a.append(pair[0])
+            pooled_b.append(pair[1])
         if not per_task:
             out.append({"claim": claim.text, "per_task": {}, "pooled": None, "verdict": "not measured"})
             continue
         u, v = np.concatenate(pooled_a), np.concatenate(pooled_b)
-        wins, losses, p = int((u & ~v).sum()), int((~u & v).sum()), mcnemar_p(u, v)
+        wins, losses, p = counts(u, v)
         out.append({"claim": claim.text, "per_task": per_task, "pooled": (wins, losses, p),
                     "verdict": verdict(claim.kind, wins, losses, p),
                     "success": (100.0 * u.mean(), 100.0 * v.mean())})

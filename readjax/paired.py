@@ -36,10 +36,16 @@ def paired_outcomes(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray] | None:
     return np.asarray([x[k] for k in common], bool), np.asarray([y[k] for k in common], bool)
 
 
+def counts(a, b) -> tuple[int, int, float]:
+    """(wins, losses, p): episodes only ``a`` solves, only ``b`` solves, and the exact McNemar p."""
+    a, b = np.asarray(a, bool), np.asarray(b, bool)
+    return int((a & ~b).sum()), int((~a & b).sum()), mcnemar_p(a, b)
+
+
 def discordant(a: dict, b: dict) -> str:
     """``+wins / -losses, p=...`` of result ``a`` against ``b`` on the episodes both ran."""
     pair = paired_outcomes(a, b)
     if pair is None:
         return "no common episodes"
-    u, v = pair
-    return f"+{int((u & ~v).sum())} / -{int((~u & v).sum())}, p={mcnemar_p(u, v):.2g}"
+    wins, losses, p = counts(*pair)
+    return f"+{wins} / -{losses}, p={p:.2g}"

@@ -264,13 +264,14 @@ def recipe_differences(recorded: dict, wanted: dict) -> list[str]:
     the sections the result records; fields a run predates count at their defaults, and
     inference-only (``config.INFERENCE_ONLY``) and data-derived (``DATA_DERIVED``) fields are not the
     recipe."""
-    from readjax.config import INFERENCE_ONLY
-    recorded = result_record.with_defaults(recorded)
+    from readjax.config import without_inference_only
+    recorded = without_inference_only(result_record.with_defaults(recorded))
+    wanted = without_inference_only(wanted)
     out = []
     for section, values in recorded.items():
         if not isinstance(values, dict):
             continue
-        skip = set(INFERENCE_ONLY.get(section, ())) | set(DATA_DERIVED.get(section, ()))
+        skip = set(DATA_DERIVED.get(section, ()))
         want = wanted.get(section, {})
         out += [f"{section}.{k}" for k in sorted((set(values) | set(want)) - skip) if values.get(k) != want.get(k)]
     return out

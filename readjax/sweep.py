@@ -18,8 +18,8 @@ import numpy as np
 
 from readjax import _runtime, config, evaluation, methods, tasks
 from readjax.data import store
-from readjax.paired import discordant
 from readjax.data.generate import GenerateConfig, generate
+from readjax.paired import discordant
 from readjax.planner import Planner
 
 TEST_TIME = ("N",)

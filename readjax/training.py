@@ -25,7 +25,7 @@ from flax import struct
 from tqdm.auto import tqdm
 
 from readjax import provenance, sharding
-from readjax.config import INFERENCE_ONLY, field_defaults
+from readjax.config import field_defaults, without_inference_only
 
 
 def _field_default(section: str, name: str):
@@ -47,16 +47,6 @@ def with_new_defaults(old: dict, new: dict) -> dict:
                 if k not in values and _field_default(section, k) == v:
                     values[k] = v
         out[section] = values
-    return out
-
-
-def without_inference_only(config: dict) -> dict:
-    """``config`` without the fields that change inference only (``config.INFERENCE_ONLY``): what a
-    stage's identity is checked on."""
-    out = dict(config)
-    for section, names in INFERENCE_ONLY.items():
-        if isinstance(out.get(section), dict):
-            out[section] = {k: v for k, v in out[section].items() if k not in names}
     return out
 
 

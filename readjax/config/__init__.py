@@ -27,7 +27,7 @@ The configs are frozen and hashable, so modules built from them can be static ar
 
 from readjax.config.baselines import READ_O_SAMPLERS, VPSDE_SAMPLERS, ReadOConfig, ResNetConfig, VPSDEConfig
 from readjax.config.parse import (ALIASES, configs_from_dict, configs_to_dict, field_defaults, from_dict, override,
-                                  to_dict)
+                                  to_dict, without_inference_only)
 from readjax.config.presets import METHOD_SECTIONS, SECTIONS, TRAIN_PRESETS, preset, preset_names, presets
 from readjax.config.sections import (DEFAULT_N, INFERENCE_ONLY, REFINE_UPDATES, DenoiserConfig, SDEConfig, TrainConfig,
                                      VAEConfig)
@@ -36,5 +36,5 @@ __all__ = [
     "ALIASES", "DEFAULT_N", "INFERENCE_ONLY", "METHOD_SECTIONS", "READ_O_SAMPLERS", "REFINE_UPDATES", "SECTIONS",
     "TRAIN_PRESETS", "VPSDE_SAMPLERS", "DenoiserConfig", "ReadOConfig", "ResNetConfig", "SDEConfig",
     "TrainConfig", "VAEConfig", "VPSDEConfig", "configs_from_dict", "configs_to_dict", "field_defaults", "from_dict",
-    "override", "preset", "preset_names", "presets", "to_dict",
+    "override", "preset", "preset_names", "presets", "to_dict", "without_inference_only",
 ]

@@ -14,7 +14,7 @@ import typing
 from typing import Any, Iterable, Mapping
 
 from readjax.config.presets import METHOD_SECTIONS, SECTIONS
-from readjax.config.sections import TrainConfig
+from readjax.config.sections import INFERENCE_ONLY, TrainConfig
 
 # Table 7's one-letter names for the SDE hyperparameters.
 ALIASES = {"L": "sde.lam", "T": "sde.theta1"}
@@ -193,4 +193,14 @@ def configs_from_dict(d: Mapping[str, Any]) -> dict[str, Any]:
     """Inverse of :func:`configs_to_dict`."""
     out = from_dict({k: v for k, v in d.items() if k != "train"})
     out["train"] = TrainConfig(**d["train"])
+    return out
+
+
+def without_inference_only(config: dict) -> dict:
+    """``config`` without the fields that change inference only (``config.INFERENCE_ONLY``): what a
+    stage's identity is checked on."""
+    out = dict(config)
+    for section, names in INFERENCE_ONLY.items():
+        if isinstance(out.get(section), dict):
+            out[section] = {k: v for k, v in out[section].items() if k not in names}
     return out
