@@ -30,7 +30,7 @@ examples:
   python -m experiments.pipeline --tasks all --shard 0/2 ...    # and --shard 1/2 in a second shell
   python -m experiments.pipeline --tasks RT --methods read --read-N 0 10 100 --results my_results --dry-run
   python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic vpsde vpsde_cg read_l \
-      read_o_cd read_o_em --variant read_o_cd read_o read_o.sampler=cd --variant read_o_em read_o \
+      --variant read_o_cd read_o read_o.sampler=cd --variant read_o_em read_o \
       read_o.sampler=em --protocols oracle poor perturbed --read-N 0 1 10 100 \
       --run-name read=read_v3_5k --run-name deterministic=deterministic_v3_5k
 """
@@ -50,11 +50,11 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.pipeline", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--tasks", nargs="+", required=True, help="task names or codes, or 'all' (the 16)")
-    p.add_argument("--methods", nargs="+", default=["read", "deterministic"], metavar="METHOD",
-                   help=f"methods ({' '.join(methods.names())}) and --variant labels, in the order they run")
+    p.add_argument("--methods", nargs="+", default=["read", "deterministic"], choices=methods.names(),
+                   help="methods, in the order they run (each --variant runs after them)")
     p.add_argument("--variant", nargs="+", action="append", default=[], metavar="ARG",
                    help="LABEL METHOD [KEY=VALUE ...]: METHOD trained with these config overrides (after --set) "
-                        "in its own run folder LABEL, then evaluated as METHOD is; add LABEL to --methods, e.g. "
+                        "in its own run folder LABEL, then evaluated as METHOD is: a row of its own, e.g. "
                         "--variant read_o_em read_o read_o.sampler=em --variant read_kin read vae.kinematic=true")
     p.add_argument("--preset", default="cpu", choices=preset_names())
     p.add_argument("--data", default="data", help="dataset root")
@@ -110,7 +110,8 @@ def main(argv=None) -> int:
         raise ValueError(f"--variant takes LABEL METHOD [KEY=VALUE ...], got {[' '.join(v) for v in args.variant]}")
     variants = tuple((v[0], v[1], tuple(v[2:])) for v in args.variant)
     cfg = pipeline.PipelineConfig(
-        tasks=names, methods=tuple(args.methods), preset=args.preset, data=args.data, runs=args.runs,
+        tasks=names, methods=tuple(args.methods) + tuple(label for label, _, _ in variants), preset=args.preset,
+        data=args.data, runs=args.runs,
         results=args.results, train_episodes=args.train_episodes, test_episodes=args.test_episodes,
         image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
         overrides=tuple(args.set), shard=shard, run_names=run_names,

@@ -356,7 +356,7 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     assert _cli.run(pipeline_cli.main, ["--tasks", "XX", "--dry-run"]) == 2
     assert _cli.run(pipeline_cli.main, argv + ["--variant", "read_kin"]) == 2
     assert "LABEL METHOD" in capsys.readouterr().err
-    variant = ["--methods", "read", "read_kin", "--variant", "read_kin", "read", "vae.kinematic=true",
+    variant = ["--methods", "read", "--variant", "read_kin", "read", "vae.kinematic=true",
                "--protocols", "poor"]
     assert _cli.run(pipeline_cli.main, argv + variant) == 0
     out = capsys.readouterr().out
