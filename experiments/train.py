@@ -10,6 +10,7 @@ examples:
   python -m experiments.train --task PB --preset cpu --set steps=500 --set L=1.0 --name read_L1
   python -m experiments.train --task RT --preset paper --stage read      # only the diffusion stage
   python -m experiments.train --task RT --model vpsde --set val_episodes=100 --set stop_patience=2000
+  python -m experiments.train --task RT --name read_sf --set sde.self_feed=0.5 --vae-from runs/reach_target/read
 
 The convergence rule (every method, every stage): with train.val_episodes > 0 the last demos of
 the training split are held out and their loss is logged every train.val_every steps (val_loss in
@@ -48,6 +49,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--stage", default="all", help="which stage to train (all, or one of the method's stages, "
                    "e.g. vae / read for READ)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config field")
+    p.add_argument("--vae-from", default=None, metavar="RUN",
+                   help="start from RUN's finished autoencoder stage instead of training one (READ, READ-L; "
+                        "refused unless RUN's was trained with this run's autoencoder config on the same data)")
     p.add_argument("--restart", action="store_true", help="delete an existing run of this name first")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
@@ -66,9 +70,16 @@ def main(argv=None) -> None:
     if args.stage != "all" and args.stage not in all_stages:
         raise ValueError(f"{args.model} has stages {', '.join(all_stages)}; got --stage {args.stage}")
     stages = all_stages if args.stage == "all" else (args.stage,)
+    shared = {}
+    if args.vae_from:
+        if "vae" not in all_stages:
+            raise ValueError(f"--vae-from shares an autoencoder stage; {args.model} has none ({', '.join(all_stages)})")
+        if not (Path(args.vae_from) / "vae").is_dir():
+            raise ValueError(f"--vae-from {args.vae_from}: no autoencoder stage there ({args.vae_from}/vae)")
+        shared["vae_from"] = args.vae_from
     print(f"training {args.model} on {task} ({args.preset} preset) -> {run_dir}", flush=True)
     spec = methods.module(args.model).train(task, args.data, run_dir, configs, args.preset, stages=stages,
-                                            progress=not args.quiet)
+                                            progress=not args.quiet, **shared)
     summary = {"run": str(run_dir), "task": task, "episodes": spec["episodes"]}
     for stage in stages:
         f = run_dir / stage / "metrics.jsonl"

@@ -277,6 +277,25 @@ def recipe_differences(recorded: dict, wanted: dict) -> list[str]:
     return out
 
 
+def autoencoder_source(cfg: PipelineConfig, label: str) -> str | None:
+    """The first earlier label of the grid whose run ``label``'s run starts its autoencoder from
+    (``experiments.train --vae-from``): one with an autoencoder stage of the same stage config (a
+    READ variant that changes only the denoiser, the SDE or K shares READ's). None: it trains its own."""
+    from readjax import config, methods
+    from readjax.methods import read as read_lib
+
+    def stage_config(lab: str):
+        if "vae" not in methods.stages(cfg.method_of(lab)):
+            return None
+        configs = config.override(config.presets(cfg.preset), cfg.overrides_of(lab))
+        return read_lib.vae_stage_config(json.loads(json.dumps(config.configs_to_dict(configs))))
+
+    mine = stage_config(label)
+    if mine is None:
+        return None
+    return next((other for other in cfg.methods[:cfg.methods.index(label)] if stage_config(other) == mine), None)
+
+
 def check_recipes(cfg: PipelineConfig) -> None:
     """Refuse a grid whose run folders in ``results/`` hold evaluations of another recipe: the
     finished ones would be counted as this grid's, and a run retrained on another machine under the
@@ -344,15 +363,22 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                         results, task, split_fingerprint(d, c), c)))
         steps += prepare
         outputs: list[Step] = []  # the task's evaluations and media: what the rest is for
+        trains: dict[str, Step] = {}
         for label in cfg.methods:
             method = cfg.method_of(label)
             run = runs / task / cfg.run_name(label)
             marker = run / "pipeline_trained.json"
             sets = sum((["--set", s] for s in cfg.overrides_of(label)), [])
+            source = autoencoder_source(cfg, label)
+            if source is not None:
+                sets += ["--vae-from", str(runs / task / cfg.run_name(source))]
             train = Step("train", task, f"train {label}", [
                 python, "-m", "experiments.train", "--task", task, "--model", method, "--name", run.name,
                 "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"] + sets, made=marker.exists,
                 after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
+            trains[label] = train
+            if source is not None:  # the source's training runs while this one needs its autoencoder
+                trains[source].users.append(train)
             uses = [evaluate_step(cfg, task, run, method, request, python, shown=label)
                     for request in eval_requests(method, cfg.read_N)]
             if label == "read":  # READ itself, not a variant: media, diagnosis and the paper's protocols
@@ -363,7 +389,7 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                     uses += [step for n, step in zip(cfg.read_N, oracle_steps(cfg, task, run, python))
                              if EvalRequest(n, 1) not in protocol]  # the oracle protocol runs it anyway
                 uses += [evaluate_step(cfg, task, run, method, request, python) for request in protocol]
-            train.users = uses
+            train.users += uses
             steps += [train] + uses
             outputs += uses
         for step in prepare:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -90,12 +89,11 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         run_dir = sweep_dir / run_name
         overrides = list(cfg.sets) + [f"{TRAIN_KEYS[k]}={v}" for k, v in values.items()]
         configs = config.override(config.presets(cfg.preset), overrides)
-        if shared_vae is not None and "vae" in methods.stages(cfg.model) and not (run_dir / "vae").exists():
-            run_dir.mkdir(parents=True, exist_ok=True)
-            shutil.copytree(shared_vae, run_dir / "vae")  # the autoencoder ignores K, L, T
-        methods.module(cfg.model).train(task, cfg.data, run_dir, configs, cfg.preset, progress=progress)
+        # the autoencoder ignores K, L, T: the first cell trains it, the others start from it
+        shared = {"vae_from": shared_vae} if shared_vae is not None and "vae" in methods.stages(cfg.model) else {}
+        methods.module(cfg.model).train(task, cfg.data, run_dir, configs, cfg.preset, progress=progress, **shared)
         if (run_dir / "vae").exists():
-            shared_vae = shared_vae or run_dir / "vae"
+            shared_vae = shared_vae or run_dir
         planner = None
         for n in n_values:
             name = f"{CELL_PREFIX}N{n}"

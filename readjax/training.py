@@ -129,6 +129,47 @@ def make_train_step(loss_fn: Callable, optimizer: optax.GradientTransformation, 
     return jax.jit(train_step, donate_argnums=(0,))
 
 
+def identity_mismatch(stage_json: Path, config: dict, fingerprint: str) -> str | None:
+    """Why a stage recorded in ``stage_json`` is not one trained with ``config`` on the dataset
+    ``fingerprint`` (None: it is). Inference-only fields are not compared; fields the record
+    predates count at their defaults."""
+    try:
+        old = json.loads(Path(stage_json).read_text())
+    except json.JSONDecodeError as e:
+        raise CheckpointError(f"{stage_json} is corrupted ({e}); move the run away or use a new --out") from e
+    if old.get("dataset_fingerprint") != fingerprint:
+        return f"was trained on dataset {old.get('dataset_fingerprint')}, not {fingerprint}"
+    config = json.loads(json.dumps(config))
+    old_config = without_inference_only(with_new_defaults(old.get("config", {}), config))
+    new_config = without_inference_only(config)
+    if old_config != new_config:
+        diff = sorted(k for k in set(old_config) | set(new_config) if old_config.get(k) != new_config.get(k))
+        return f"was trained with another config (differs in {diff})"
+    return None
+
+
+def copy_finished_stage(source_run: str | Path, run_dir: str | Path, name: str, config: dict,
+                        fingerprint: str) -> bool:
+    """Start ``run_dir``'s stage ``name`` as a copy of the same, finished stage of ``source_run``
+    (runs that differ only in what later stages read share it: READ variants share the autoencoder).
+    Refused, with nothing written, when the source stage is unfinished or was trained with another
+    config or dataset. Returns False (nothing done) when ``run_dir`` already has the stage."""
+    import shutil
+
+    src, dst = Path(source_run) / name, Path(run_dir) / name
+    if dst.exists():
+        return False
+    if not (src / "stage.json").exists() or not (src / "stop.json").exists():
+        raise CheckpointError(f"{src} is not a finished {name!r} stage (no stage.json / stop.json); "
+                              "train it first or drop the option")
+    why = identity_mismatch(src / "stage.json", config, fingerprint)
+    if why:
+        raise CheckpointError(f"{src} cannot be shared: it {why}")
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copytree(src, dst)
+    return True
+
+
 class Stage:
     """One training stage in ``run_dir/<name>/``: checkpoints/, metrics.jsonl, loss.png, stage.json."""
 
@@ -151,21 +192,9 @@ class Stage:
         f = self.dir / "stage.json"
         meta = {"stage": self.name, "config": self.config, "dataset_fingerprint": self.fingerprint}
         if f.exists():
-            try:
-                old = json.loads(f.read_text())
-            except json.JSONDecodeError as e:
-                raise CheckpointError(f"{f} is corrupted ({e}); move the run away or use a new --out") from e
-            if old.get("dataset_fingerprint") != self.fingerprint:
-                raise CheckpointError(
-                    f"{self.dir} was trained on dataset {old.get('dataset_fingerprint')}, not "
-                    f"{self.fingerprint}; use a new --out (or --restart to overwrite)")
-            old_config = without_inference_only(with_new_defaults(old.get("config", {}), self.config))
-            new_config = without_inference_only(self.config)
-            if old_config != new_config:
-                diff = sorted(k for k in set(old_config) | set(new_config)
-                              if old_config.get(k) != new_config.get(k))
-                raise CheckpointError(f"{self.dir} was trained with another config (differs in {diff}); "
-                                      f"use a new --out (or --restart to overwrite)")
+            why = identity_mismatch(f, self.config, self.fingerprint)
+            if why:
+                raise CheckpointError(f"{self.dir} {why}; use a new --out (or --restart to overwrite)")
         else:
             f.write_text(json.dumps(dict(meta, versions=provenance.versions()), indent=2, sort_keys=True))
 

@@ -128,6 +128,24 @@ def test_train_writes_checkpoints_metrics_and_plots(run):
     assert (run_dir / "run.json").exists()
 
 
+def test_a_variant_starts_from_a_finished_autoencoder_or_is_refused(run, tmp_path, capsys):
+    """--vae-from copies another run's finished autoencoder stage instead of training one (READ's
+    self-fed variant changes only the denoiser's objective); another autoencoder config, or a method
+    without that stage, is refused with nothing written."""
+    data, run_dir = run
+    argv = ["--task", "RT", "--data", str(data), "--out", str(tmp_path), "--quiet"] + sum((["--set", s] for s in TINY), [])
+    assert _cli.run(train_cli.main, argv + ["--name", "sf", "--set", "sde.self_feed=0.5", "--vae-from", str(run_dir)]) == 0
+    variant = tmp_path / "reach_target" / "sf"
+    assert (variant / "vae" / "metrics.jsonl").read_text() == (run_dir / "vae" / "metrics.jsonl").read_text()
+    assert (variant / "read" / "loss.png").exists()
+    assert json.loads((variant / "run.json").read_text())["configs"]["sde"]["self_feed"] == 0.5
+    capsys.readouterr()
+    assert _cli.run(train_cli.main, argv + ["--name", "kl", "--set", "vae.kl_weight=0.5", "--vae-from", str(run_dir)]) == 2
+    assert "cannot be shared" in capsys.readouterr().err and not (tmp_path / "reach_target" / "kl" / "vae").exists()
+    assert _cli.run(train_cli.main, argv + ["--model", "deterministic", "--vae-from", str(run_dir)]) == 2
+    assert "has none" in capsys.readouterr().err
+
+
 def test_plan_and_execute(run, capsys, tmp_path):
     data, run_dir = run
     media = tmp_path / "media"  # --out: rendered apart from RUN/eval, which the tables read

@@ -258,6 +258,22 @@ def test_variants_train_with_their_own_overrides_in_their_own_runs(tmp_path):
             _cfg(tmp_path, **bad)
 
 
+def test_a_variant_with_reads_autoencoder_starts_from_it(tmp_path):
+    """A READ variant that changes only what comes after the autoencoder (the SDE, the denoiser, K)
+    starts from READ's finished autoencoder stage (--vae-from), and READ's training counts as needed
+    while such a variant still is; one that changes the autoencoder trains its own."""
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read", "read_sf", "read_kin", "read_l"),
+               variants=(("read_sf", "read", ("sde.self_feed=0.5", "train.K=3")),
+                         ("read_kin", "read", ("vae.kinematic=true",))))
+    trains = {s.label: s for s in pipeline.plan_steps(cfg) if s.kind == "train"}
+    source = str(tmp_path / "runs" / "reach_target" / "read")
+    vae_from = {label: s.argv[s.argv.index("--vae-from") + 1] if "--vae-from" in s.argv else None
+                for label, s in trains.items()}
+    assert vae_from == {"train read": None, "train read_sf": source, "train read_kin": None, "train read_l": source}
+    assert trains["train read_sf"] in trains["train read"].users
+    assert trains["train read_kin"] not in trains["train read"].users
+
+
 def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
     """--protocols oracle poor perturbed: READ from the oracle's 1st / 3rd / 10th neighbour at N = 0 and
     the top N (Tables 4, 5), from its 500th at N = 0 / 1 / top (Table 8), and on noisy and darkened

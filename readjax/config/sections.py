@@ -162,6 +162,14 @@ class SDEConfig:
     data's own spread in every dimension. False (the default, both presets) is the paper's raw
     code. Measured on reach_target it makes the denoiser's local corrections better but READ's
     executed success worse (BENCHMARKS.md section 8), so it stays an option.
+
+    ``self_feed`` (READ, training only) is the fraction of each training batch whose noised latent
+    is built from the denoiser's own prediction instead of from the ground truth: a first,
+    gradient-free pass predicts M̂0 from the usual z_t, and the trained pass sees the degradation
+    of Enc(M̂0) at the same t with the same noise. At inference every step after the first reads
+    the degradation of the previous step's prediction, never the ground truth's; trained only on
+    the latter, the map x -> D(Dec(Enc(x)), t) is not a contraction onto the answer, and N steps
+    end further off than one (BENCHMARKS.md 13). 0 (the default) is the paper's objective.
     """
 
     lam: float = 0.5
@@ -173,6 +181,7 @@ class SDEConfig:
     # refinements in a row at inference, each started from the previous one's plan as its retrieved
     # motion (``Planner.refine``); 1 is the paper's single refinement
     rounds: int = 1
+    self_feed: float = 0.0
 
     def __post_init__(self):
         if self.lam <= 0:
@@ -183,6 +192,8 @@ class SDEConfig:
             raise ValueError("SDEConfig theta0 and theta1 must be >= 0 and not both 0")
         if isinstance(self.rounds, bool) or not isinstance(self.rounds, int) or self.rounds < 1:
             raise ValueError(f"SDEConfig.rounds must be a positive int, got {self.rounds!r}")
+        if not 0.0 <= self.self_feed <= 1.0:
+            raise ValueError(f"SDEConfig.self_feed must be in [0, 1], got {self.self_feed!r}")
         if self.update not in REFINE_UPDATES:
             raise ValueError(f"SDEConfig.update must be one of {', '.join(REFINE_UPDATES)}, got {self.update!r}")
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from readjax import config, tasks
+from readjax import config, tasks, training
 from readjax.data import motion as motion_lib
 from readjax.diffusion import irsde
 from readjax.diffusion import latent as latent_lib
@@ -62,8 +62,11 @@ def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict, l
 
     The batch carries z0 = Enc(M) and zR = Enc(M_R) (``code``, ``code_r``: the frozen autoencoder's
     deterministic codes, computed once per training set by :func:`latent_lib.codes`; encoding them
-    at every step cost 2 of the step's 3 autoencoder passes)."""
-    _, dec = latent_lib.codec(ae, ae_params, latent)
+    at every step cost 2 of the step's 3 autoencoder passes).
+
+    With ``sde.self_feed`` > 0 that fraction of the batch is trained on the degradation of the
+    denoiser's own gradient-free first prediction instead (``SDEConfig``); 0 is the paper's loss."""
+    enc, dec = latent_lib.codec(ae, ae_params, latent)
 
     def loss_fn(params, batch, rng):
         k_t, k_n, k_aug, k_drop = jax.random.split(rng, 4)
@@ -73,7 +76,14 @@ def read_loss(ae, ae_params, den: Denoiser, sde, augment: bool, weights: dict, l
         z0, z_r = batch["code"], batch["code_r"]
         t = irsde.sample_time(k_t, (m.shape[0],), sde)
         m_t = dec(irsde.marginal_sample(k_n, z0, z_r, t, sde))
-        pred = den.apply(params, image, m_t, t, train=True, rngs={"dropout": k_drop})
+        if not sde.self_feed:
+            pred = den.apply(params, image, m_t, t, train=True, rngs={"dropout": k_drop})
+            return weighted_motion_loss(pred, m, weights)
+        features = den.apply(params, image, True, method="encode_image", rngs={"dropout": k_drop})
+        first = den.apply(params, jax.lax.stop_gradient(features), m_t, t, method="denoise")
+        fed = dec(irsde.marginal_sample(k_n, enc(jax.lax.stop_gradient(first)), z_r, t, sde))
+        use = jax.random.bernoulli(jax.random.fold_in(rng, 4), sde.self_feed, (m.shape[0],))[:, None, None]
+        pred = den.apply(params, features, jnp.where(use, fed, m_t), t, method="denoise")
         return weighted_motion_loss(pred, m, weights)
 
     return loss_fn
@@ -119,23 +129,28 @@ def fit_latent_stats(run_dir: Path, ae, ae_params, motions, sde):
     return stats
 
 
-def prepare_autoencoder(run: common.PreparedRun, stages, progress: bool, stop_at, build=None):
+def prepare_autoencoder(run: common.PreparedRun, stages, progress: bool, stop_at, build=None, vae_from=None):
     """The first stage READ and READ-L share: build the modules (``build``, default READ's
-    :func:`build_modules`) and fit the autoencoder if ``"vae"`` is among ``stages``. Returns
-    (autoencoder, denoiser, autoencoder key, denoiser key)."""
+    :func:`build_modules`) and fit the autoencoder if ``"vae"`` is among ``stages``. ``vae_from``:
+    another run folder whose finished autoencoder stage this run starts from (same stage config and
+    dataset, else refused: ``training.copy_finished_stage``). Returns (autoencoder, denoiser,
+    autoencoder key, denoiser key)."""
     ae, den = (build or build_modules)(run.configs, tasks.make(run.task).chain, run.ds.camera)
     k_ae, k_den = jax.random.split(jax.random.key(run.train_cfg.seed))
+    if vae_from is not None:
+        training.copy_finished_stage(vae_from, run.run_dir, "vae", vae_stage_config(run.cfg_dict), run.ds.fingerprint)
     if "vae" in stages:
         fit_autoencoder(run.run_dir, run.ds, ae, k_ae, run.train_cfg, run.cfg_dict, progress, stop_at)
     return ae, den, k_ae, k_den
 
 
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
-          stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
-    """Train READ for a task; each stage resumes from its latest checkpoint. Returns run.json."""
+          stages=STAGES, progress: bool = True, stop_at: int | None = None, vae_from=None) -> dict:
+    """Train READ for a task; each stage resumes from its latest checkpoint (``vae_from``: start
+    from another run's finished autoencoder, :func:`prepare_autoencoder`). Returns run.json."""
     run = common.prepare("read", task, data_root, run_dir, configs, preset, None, configs["denoiser"].image_size,
                          adjust=lambda c, ds: with_motion_stats(c, ds.motion))
-    ae, den, k_ae, k_den = prepare_autoencoder(run, stages, progress, stop_at)
+    ae, den, k_ae, k_den = prepare_autoencoder(run, stages, progress, stop_at, vae_from=vae_from)
     if "read" in stages:
         ds, configs, train_cfg = run.ds, run.configs, run.train_cfg
         ae_params = autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)

@@ -73,10 +73,12 @@ def read_l_loss(ae, lden: LatentDenoiser, sde: SDEConfig, augment: bool, latent=
 
 
 def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, preset: str,
-          stages=STAGES, progress: bool = True, stop_at: int | None = None) -> dict:
-    """Train READ-L for a task: the autoencoder (as READ's), then the latent denoiser."""
+          stages=STAGES, progress: bool = True, stop_at: int | None = None, vae_from=None) -> dict:
+    """Train READ-L for a task: the autoencoder (as READ's; ``vae_from`` as READ's), then the latent
+    denoiser."""
     run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size)
-    ae, lden, k_ae, k_den = read_lib.prepare_autoencoder(run, stages, progress, stop_at, build=build_modules)
+    ae, lden, k_ae, k_den = read_lib.prepare_autoencoder(run, stages, progress, stop_at, build=build_modules,
+                                                          vae_from=vae_from)
     if "read_l" in stages:
         ds, train_cfg, sde = run.ds, run.train_cfg, run.configs["sde"]
         ae_params = read_lib.autoencoder_params(run.run_dir, ae, k_ae, train_cfg, run.cfg_dict, ds.fingerprint)
