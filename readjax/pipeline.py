@@ -363,22 +363,30 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                         results, task, split_fingerprint(d, c), c)))
         steps += prepare
         outputs: list[Step] = []  # the task's evaluations and media: what the rest is for
-        trains: dict[str, Step] = {}
+        shared: dict[str, Step] = {}  # label -> the step training that label's autoencoder stage alone
         for label in cfg.methods:
             method = cfg.method_of(label)
             run = runs / task / cfg.run_name(label)
             marker = run / "pipeline_trained.json"
             sets = sum((["--set", s] for s in cfg.overrides_of(label)), [])
+            train_argv = [python, "-m", "experiments.train", "--task", task, "--model", method,
+                          "--name", run.name, "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"]
             source = autoencoder_source(cfg, label)
+            if source is not None:  # this run starts from the source run's autoencoder, trained once
+                source_run = runs / task / cfg.run_name(source)
+                sets += ["--vae-from", str(source_run)]
+                if source not in shared:
+                    source_sets = sum((["--set", s] for s in cfg.overrides_of(source)), [])
+                    shared[source] = Step("train", task, f"train {source} (autoencoder only)", [
+                        python, "-m", "experiments.train", "--task", task, "--model", cfg.method_of(source),
+                        "--name", source_run.name, "--preset", cfg.preset, "--data", str(data), "--out", str(runs),
+                        "--quiet", "--stage", "vae"] + source_sets,
+                        made=(source_run / "vae" / "stop.json").exists)
+                    steps.append(shared[source])
+            train = Step("train", task, f"train {label}", train_argv + sets, made=marker.exists,
+                         after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
             if source is not None:
-                sets += ["--vae-from", str(runs / task / cfg.run_name(source))]
-            train = Step("train", task, f"train {label}", [
-                python, "-m", "experiments.train", "--task", task, "--model", method, "--name", run.name,
-                "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"] + sets, made=marker.exists,
-                after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
-            trains[label] = train
-            if source is not None:  # the source's training runs while this one needs its autoencoder
-                trains[source].users.append(train)
+                shared[source].users.append(train)
             uses = [evaluate_step(cfg, task, run, method, request, python, shown=label)
                     for request in eval_requests(method, cfg.read_N)]
             if label == "read":  # READ itself, not a variant: media, diagnosis and the paper's protocols
@@ -389,7 +397,7 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                     uses += [step for n, step in zip(cfg.read_N, oracle_steps(cfg, task, run, python))
                              if EvalRequest(n, 1) not in protocol]  # the oracle protocol runs it anyway
                 uses += [evaluate_step(cfg, task, run, method, request, python) for request in protocol]
-            train.users += uses
+            train.users = uses
             steps += [train] + uses
             outputs += uses
         for step in prepare:

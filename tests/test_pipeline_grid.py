@@ -11,7 +11,7 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import config, pipeline, report, verification
+from readjax import config, methods, pipeline, report, verification
 
 
 def _cfg(tmp_path, **kw):
@@ -62,6 +62,9 @@ class FakeRunner:
             self.recipes[str(run)] = json.loads(json.dumps(config.configs_to_dict(
                 configs, [k for k in configs if k != "train"])))
             self.sets[run.name] = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
+            if "vae" in methods.stages(arg("--model")):  # a finished autoencoder stage
+                (run / "vae").mkdir(exist_ok=True)
+                (run / "vae" / "stop.json").write_text("{}")
         elif mod == "evaluate":
             run = Path(arg("--run"))
             ev = Path(arg("--out")) if "--out" in argv else run / "eval"
@@ -260,18 +263,33 @@ def test_variants_train_with_their_own_overrides_in_their_own_runs(tmp_path):
 
 def test_a_variant_with_reads_autoencoder_starts_from_it(tmp_path):
     """A READ variant that changes only what comes after the autoencoder (the SDE, the denoiser, K)
-    starts from READ's finished autoencoder stage (--vae-from), and READ's training counts as needed
-    while such a variant still is; one that changes the autoencoder trains its own."""
+    starts from READ's autoencoder stage (--vae-from), trained once by a step of its own: READ's full
+    training is not redone for it when READ's evaluations are already in results/. One that changes
+    the autoencoder trains its own."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read", "read_sf", "read_kin", "read_l"),
                variants=(("read_sf", "read", ("sde.self_feed=0.5", "train.K=3")),
                          ("read_kin", "read", ("vae.kinematic=true",))))
-    trains = {s.label: s for s in pipeline.plan_steps(cfg) if s.kind == "train"}
-    source = str(tmp_path / "runs" / "reach_target" / "read")
+    steps = pipeline.plan_steps(cfg)
+    trains = {s.label: s for s in steps if s.kind == "train"}
+    source = tmp_path / "runs" / "reach_target" / "read"
     vae_from = {label: s.argv[s.argv.index("--vae-from") + 1] if "--vae-from" in s.argv else None
                 for label, s in trains.items()}
-    assert vae_from == {"train read": None, "train read_sf": source, "train read_kin": None, "train read_l": source}
-    assert trains["train read_sf"] in trains["train read"].users
-    assert trains["train read_kin"] not in trains["train read"].users
+    assert vae_from == {"train read": None, "train read (autoencoder only)": None, "train read_sf": str(source),
+                        "train read_kin": None, "train read_l": str(source)}
+    shared = trains["train read (autoencoder only)"]
+    assert shared.argv[shared.argv.index("--stage") + 1] == "vae"
+    assert shared.users == [trains["train read_sf"], trains["train read_l"]]
+    assert [s.label for s in steps if s.kind == "train"].index(shared.label) < \
+        [s.label for s in steps if s.kind == "train"].index("train read_sf")
+    runner = FakeRunner(read_top=0, media_outcome=0)
+    pipeline.run_steps(steps, log=lambda m: None, runner=runner)
+    stages = [a[a.index("--stage") + 1] if "--stage" in a else "all" for m, a in runner.calls if m == "train"]
+    assert stages == ["all", "all", "all", "all"]  # READ's own training made the autoencoder: no second one
+    # READ's evaluations done: a new variant needs READ's autoencoder only, and it is there
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read", "read_sf2"),
+               variants=(("read_sf2", "read", ("sde.self_feed=1.0",)),))
+    status = {s.label: s.status() for s in pipeline.plan_steps(cfg) if s.kind == "train"}
+    assert status == {"train read": "done", "train read (autoencoder only)": "done", "train read_sf2": "todo"}
 
 
 def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
