@@ -250,11 +250,17 @@ def split_fingerprint(split_dir: Path, episodes: int) -> str | None:
 DATA_DERIVED = {"denoiser": ("motion_mean", "motion_std")}  # filled from the training set, not the recipe
 
 
+def label_configs(cfg: PipelineConfig, label: str) -> dict:
+    """The configs (every section, train included) a ``label`` run of this grid trains with."""
+    from readjax import config
+    return config.override(config.presets(cfg.preset), cfg.overrides_of(label))
+
+
 def recipe(cfg: PipelineConfig, label: str) -> dict:
     """Every config section a ``label`` run of this grid is trained with (the preset and the
     overrides), as a result JSON records it."""
     from readjax import config
-    configs = config.override(config.presets(cfg.preset), cfg.overrides_of(label))
+    configs = label_configs(cfg, label)
     sections = [k for k in configs if k != "train"]
     return json.loads(json.dumps(config.configs_to_dict(configs, sections)))
 
@@ -287,8 +293,7 @@ def autoencoder_source(cfg: PipelineConfig, label: str) -> str | None:
     def stage_config(lab: str):
         if "vae" not in methods.stages(cfg.method_of(lab)):
             return None
-        configs = config.override(config.presets(cfg.preset), cfg.overrides_of(lab))
-        return read_lib.vae_stage_config(json.loads(json.dumps(config.configs_to_dict(configs))))
+        return read_lib.vae_stage_config(json.loads(json.dumps(config.configs_to_dict(label_configs(cfg, lab)))))
 
     mine = stage_config(label)
     if mine is None:
@@ -338,6 +343,14 @@ def finished_evaluation(results: Path, task: str, run_name: str, method: str, re
     return None
 
 
+def train_argv(cfg: PipelineConfig, task: str, label: str, python: str) -> list[str]:
+    """The ``experiments.train`` command of a ``label`` run of this grid on ``task``."""
+    sets = sum((["--set", s] for s in cfg.overrides_of(label)), [])
+    return [python, "-m", "experiments.train", "--task", task, "--model", cfg.method_of(label),
+            "--name", cfg.run_name(label), "--preset", cfg.preset, "--data", str(Path(cfg.data)),
+            "--out", str(Path(cfg.runs)), "--quiet"] + sets
+
+
 def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
     """The grid's steps in order, this shard's tasks only. A step that only feeds others (generate,
     verify, train) also counts as done once everything it feeds is: a task whose evaluations and
@@ -368,22 +381,17 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
             method = cfg.method_of(label)
             run = runs / task / cfg.run_name(label)
             marker = run / "pipeline_trained.json"
-            sets = sum((["--set", s] for s in cfg.overrides_of(label)), [])
-            train_argv = [python, "-m", "experiments.train", "--task", task, "--model", method,
-                          "--name", run.name, "--preset", cfg.preset, "--data", str(data), "--out", str(runs), "--quiet"]
+            argv = train_argv(cfg, task, label, python)
             source = autoencoder_source(cfg, label)
             if source is not None:  # this run starts from the source run's autoencoder, trained once
                 source_run = runs / task / cfg.run_name(source)
-                sets += ["--vae-from", str(source_run)]
+                argv += ["--vae-from", str(source_run)]
                 if source not in shared:
-                    source_sets = sum((["--set", s] for s in cfg.overrides_of(source)), [])
-                    shared[source] = Step("train", task, f"train {source} (autoencoder only)", [
-                        python, "-m", "experiments.train", "--task", task, "--model", cfg.method_of(source),
-                        "--name", source_run.name, "--preset", cfg.preset, "--data", str(data), "--out", str(runs),
-                        "--quiet", "--stage", "vae"] + source_sets,
-                        made=(source_run / "vae" / "stop.json").exists)
+                    shared[source] = Step("train", task, f"train {source} (autoencoder only)",
+                                          train_argv(cfg, task, source, python) + ["--stage", "vae"],
+                                          made=(source_run / "vae" / "stop.json").exists)
                     steps.append(shared[source])
-            train = Step("train", task, f"train {label}", train_argv + sets, made=marker.exists,
+            train = Step("train", task, f"train {label}", argv, made=marker.exists,
                          after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
             if source is not None:
                 shared[source].users.append(train)

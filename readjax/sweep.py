@@ -82,7 +82,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         generate(GenerateConfig(task=task, split="test", episodes=cfg.episodes, out=cfg.data,
                                 image_size=meta.get("image_size", 64)), progress=progress)
     test_ds = store.load_dataset(test_dir, limit=cfg.episodes)
-    cells, shared_vae = [], None
+    cells, vae_source = [], None
     for combo in combos:
         values = dict(zip(train_keys, combo))
         run_name = "_".join(f"{k}{_label(v)}" for k, v in values.items()) or "default"
@@ -90,10 +90,10 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         overrides = list(cfg.sets) + [f"{TRAIN_KEYS[k]}={v}" for k, v in values.items()]
         configs = config.override(config.presets(cfg.preset), overrides)
         # the autoencoder ignores K, L, T: the first cell trains it, the others start from it
-        shared = {"vae_from": shared_vae} if shared_vae is not None and "vae" in methods.stages(cfg.model) else {}
+        shared = {"vae_from": vae_source} if vae_source is not None and "vae" in methods.stages(cfg.model) else {}
         methods.module(cfg.model).train(task, cfg.data, run_dir, configs, cfg.preset, progress=progress, **shared)
         if (run_dir / "vae").exists():
-            shared_vae = shared_vae or run_dir
+            vae_source = vae_source or run_dir
         planner = None
         for n in n_values:
             name = f"{CELL_PREFIX}N{n}"
