@@ -148,6 +148,19 @@ def identity_mismatch(stage_json: Path, config: dict, fingerprint: str) -> str |
     return None
 
 
+def check_shareable_stage(source_run: str | Path, name: str, config: dict, fingerprint: str) -> None:
+    """Raise CheckpointError unless ``source_run`` has a finished stage ``name`` trained with
+    ``config`` on the dataset ``fingerprint`` (what :func:`copy_finished_stage` may copy). Writes
+    nothing: callers run it before they create a run folder, so a refusal leaves no trace."""
+    src = Path(source_run) / name
+    if not (src / "stage.json").exists() or not (src / "stop.json").exists():
+        raise CheckpointError(f"{src} is not a finished {name!r} stage (no stage.json / stop.json); "
+                              "train it first or drop the option")
+    why = identity_mismatch(src / "stage.json", config, fingerprint)
+    if why:
+        raise CheckpointError(f"{src} cannot be shared: it {why}")
+
+
 def copy_finished_stage(source_run: str | Path, run_dir: str | Path, name: str, config: dict,
                         fingerprint: str) -> bool:
     """Start ``run_dir``'s stage ``name`` as a copy of the same, finished stage of ``source_run``
@@ -159,12 +172,7 @@ def copy_finished_stage(source_run: str | Path, run_dir: str | Path, name: str, 
     src, dst = Path(source_run) / name, Path(run_dir) / name
     if dst.exists():
         return False
-    if not (src / "stage.json").exists() or not (src / "stop.json").exists():
-        raise CheckpointError(f"{src} is not a finished {name!r} stage (no stage.json / stop.json); "
-                              "train it first or drop the option")
-    why = identity_mismatch(src / "stage.json", config, fingerprint)
-    if why:
-        raise CheckpointError(f"{src} cannot be shared: it {why}")
+    check_shareable_stage(source_run, name, config, fingerprint)
     dst.parent.mkdir(parents=True, exist_ok=True)
     shutil.copytree(src, dst)
     return True

@@ -141,7 +141,9 @@ def test_a_variant_starts_from_a_finished_autoencoder_or_is_refused(run, tmp_pat
     assert json.loads((variant / "run.json").read_text())["configs"]["sde"]["self_feed"] == 0.5
     capsys.readouterr()
     assert _cli.run(train_cli.main, argv + ["--name", "kl", "--set", "vae.kl_weight=0.5", "--vae-from", str(run_dir)]) == 2
-    assert "cannot be shared" in capsys.readouterr().err and not (tmp_path / "reach_target" / "kl" / "vae").exists()
+    assert "cannot be shared" in capsys.readouterr().err and not (tmp_path / "reach_target" / "kl").exists()
+    assert _cli.run(train_cli.main, argv + ["--name", "un", "--vae-from", str(tmp_path / "reach_target" / "sf" / "read")]) == 2
+    assert "no autoencoder stage" in capsys.readouterr().err and not (tmp_path / "reach_target" / "un").exists()
     assert _cli.run(train_cli.main, argv + ["--model", "deterministic", "--vae-from", str(run_dir)]) == 2
     assert "has none" in capsys.readouterr().err
 

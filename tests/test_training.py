@@ -9,7 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from readjax.training import CheckpointError, Stage, StageSpec, TrainState, batch_indices, learning_rate
+from readjax.training import (CheckpointError, Stage, StageSpec, TrainState, batch_indices, check_shareable_stage,
+                              copy_finished_stage, learning_rate)
 
 X = np.random.default_rng(0).normal(size=(64, 3)).astype(np.float32)
 Y = X @ np.array([[1.0], [-2.0], [0.5]], np.float32)
@@ -80,6 +81,26 @@ def test_refuses_other_dataset_or_config_and_corruption(tmp_path):
             f.write_bytes(b"\0garbage")
     with pytest.raises(CheckpointError, match="cannot be restored"):
         stage.fit(params0(), loss_fn, sample, progress=False)
+
+
+def test_only_a_finished_stage_of_the_same_config_and_dataset_is_shared(tmp_path):
+    """copy_finished_stage (READ variants share the autoencoder): an unfinished source, another config
+    or another dataset is refused with nothing written; a finished one is copied once, byte for byte."""
+    src, dst = tmp_path / "src", tmp_path / "dst"
+    Stage(src, "toy", SPEC, {"x": 1}, "fp").fit(params0(), loss_fn, sample, progress=False, stop_at=10)
+    with pytest.raises(CheckpointError, match="not a finished"):
+        copy_finished_stage(src, dst, "toy", {"x": 1}, "fp")
+    Stage(src, "toy", SPEC, {"x": 1}, "fp").fit(params0(), loss_fn, sample, progress=False)
+    for config, fingerprint, why in (({"x": 2}, "fp", "another config"), ({"x": 1}, "other", "dataset")):
+        with pytest.raises(CheckpointError, match=why):
+            check_shareable_stage(src, "toy", config, fingerprint)
+        with pytest.raises(CheckpointError, match=why):
+            copy_finished_stage(src, dst, "toy", config, fingerprint)
+    assert not dst.exists()
+    assert copy_finished_stage(src, dst, "toy", {"x": 1}, "fp")
+    assert (dst / "toy" / "metrics.jsonl").read_bytes() == (src / "toy" / "metrics.jsonl").read_bytes()
+    assert not copy_finished_stage(src, dst, "toy", {"x": 1}, "fp")  # already there: left alone
+    assert int(Stage(dst, "toy", SPEC, {"x": 1}, "fp").latest_step()) == SPEC.steps
 
 
 def test_stage_from_an_older_readjax_accepts_new_fields_at_their_defaults(tmp_path):

@@ -130,10 +130,10 @@ class PreparedRun:
 
 
 def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: str, sections, image_size: int,
-            adjust=None) -> PreparedRun:
+            adjust=None, check=None) -> PreparedRun:
     """Load the training set and write run.json (recording only ``sections`` + train; None: READ's
     sections). ``adjust(configs, ds) -> configs`` fills data-dependent config values before they
-    are recorded."""
+    are recorded; ``check(cfg_dict, ds)`` may raise to refuse the run before anything is written."""
     task = tasks.canonical_name(task)
     run_dir = Path(run_dir)
     ds = base.load_train_data(data_root, task, configs["train"], image_size)
@@ -141,6 +141,8 @@ def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: s
         n_train = base.train_size(len(ds), configs["train"])
         configs = adjust(configs, ds if n_train == len(ds) else ds.subset(np.arange(n_train)))
     cfg_dict = config.configs_to_dict(configs, sections)
+    if check is not None:
+        check(cfg_dict, ds)
     spec = {"method": method, "task": task, "preset": preset, "configs": cfg_dict,
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
             "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}

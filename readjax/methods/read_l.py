@@ -76,7 +76,8 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
           stages=STAGES, progress: bool = True, stop_at: int | None = None, vae_from=None) -> dict:
     """Train READ-L for a task: the autoencoder (as READ's; ``vae_from`` as READ's), then the latent
     denoiser."""
-    run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size)
+    run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size,
+                         check=read_lib.autoencoder_source_check(vae_from))
     ae, lden, k_ae, k_den = read_lib.prepare_autoencoder(run, stages, progress, stop_at, build=build_modules,
                                                           vae_from=vae_from)
     if "read_l" in stages:
