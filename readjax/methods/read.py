@@ -129,10 +129,12 @@ def fit_latent_stats(run_dir: Path, ae, ae_params, motions, sde):
     return stats
 
 
-def autoencoder_source_check(vae_from):
+def autoencoder_source_check(vae_from, run_dir):
     """``common.prepare``'s ``check`` for a run that starts from ``vae_from``'s finished autoencoder:
-    refuse (before run.json is written) a source trained with another autoencoder config or dataset."""
-    if vae_from is None:
+    refuse (before run.json is written) a source trained with another autoencoder config or dataset.
+    None (nothing to check) without a source, or once ``run_dir`` holds its copy: a resumed run
+    does not depend on its source any more, as in ``training.copy_finished_stage``."""
+    if vae_from is None or (Path(run_dir) / "vae").exists():
         return None
     return lambda cfg_dict, ds: training.check_shareable_stage(vae_from, "vae", vae_stage_config(cfg_dict),
                                                               ds.fingerprint)
@@ -158,7 +160,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     """Train READ for a task; each stage resumes from its latest checkpoint (``vae_from``: start
     from another run's finished autoencoder, :func:`prepare_autoencoder`). Returns run.json."""
     run = common.prepare("read", task, data_root, run_dir, configs, preset, None, configs["denoiser"].image_size,
-                         adjust=lambda c, ds: with_motion_stats(c, ds.motion), check=autoencoder_source_check(vae_from))
+                         adjust=lambda c, ds: with_motion_stats(c, ds.motion), check=autoencoder_source_check(vae_from, run_dir))
     ae, den, k_ae, k_den = prepare_autoencoder(run, stages, progress, stop_at, vae_from=vae_from)
     if "read" in stages:
         ds, configs, train_cfg = run.ds, run.configs, run.train_cfg

@@ -77,7 +77,7 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     """Train READ-L for a task: the autoencoder (as READ's; ``vae_from`` as READ's), then the latent
     denoiser."""
     run = common.prepare(METHOD, task, data_root, run_dir, configs, preset, SECTIONS, configs["denoiser"].image_size,
-                         check=read_lib.autoencoder_source_check(vae_from))
+                         check=read_lib.autoencoder_source_check(vae_from, run_dir))
     ae, lden, k_ae, k_den = read_lib.prepare_autoencoder(run, stages, progress, stop_at, build=build_modules,
                                                           vae_from=vae_from)
     if "read_l" in stages:

@@ -3,18 +3,21 @@ degradation of its own first prediction) — what it feeds, that no gradient cro
 pass, and that it fits."""
 
 import dataclasses
+import types
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from readjax import config
 from readjax.config import SDEConfig
 from readjax.diffusion import irsde, latent
 from readjax.methods import read as read_lib
 from readjax.models import make_autoencoder
 from readjax.models.denoiser import Denoiser
 from readjax.models.vae import weighted_motion_loss
+from readjax.training import CheckpointError
 
 from tests.methods.helpers import fit, stats_of, tiny_batch
 from tests.models.helpers import TINY_DENOISER, TINY_VAE, key
@@ -85,3 +88,16 @@ def test_self_feed_changes_the_input_and_a_fraction_mixes_both(setup):
 def test_self_feed_outside_zero_one_is_refused(bad):
     with pytest.raises(ValueError, match="self_feed"):
         SDEConfig(self_feed=bad)
+
+
+def test_the_autoencoder_source_is_checked_only_before_the_run_has_its_copy(tmp_path):
+    """--vae-from is checked before run.json is written; a run that already holds its copied
+    autoencoder resumes without its source (which may since have been moved or retrained)."""
+    source, run = tmp_path / "source", tmp_path / "run"
+    check = read_lib.autoencoder_source_check(source, run)
+    cfg_dict = config.configs_to_dict(config.presets("cpu"))
+    with pytest.raises(CheckpointError, match="not a finished 'vae' stage"):
+        check(cfg_dict, types.SimpleNamespace(fingerprint="fp"))
+    assert read_lib.autoencoder_source_check(None, run) is None
+    (run / "vae").mkdir(parents=True)
+    assert read_lib.autoencoder_source_check(source, run) is None
