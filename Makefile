@@ -11,8 +11,12 @@ setup:
 demo: setup
 	$(PY) -m experiments.demo
 
+# Two pytest workers (pytest-xdist): XLA compiles one program at a time, so a single process leaves
+# a core idle through much of a cold run; tests sharing an expensive fixture or a task's expert
+# rollout go to one worker (tests/conftest.py, xdist_group_of). TEST_WORKERS=0: one process.
+TEST_WORKERS ?= 2
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS)
 
 test-slow: setup
 	$(PY) -m pytest -q -m slow

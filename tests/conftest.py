@@ -1,5 +1,6 @@
 """Test session set-up: 2 forced host devices (exercises the sharded path), the persistent JAX
-compilation cache, single-threaded torch, and shared fixtures for the task tests."""
+compilation cache, single-threaded torch, shared fixtures for the task tests, and the worker groups
+of `make test`'s two pytest-xdist workers (``xdist_group_of``)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,41 @@ try:
     torch.set_num_threads(1)
 except ImportError:  # the dev extra is not installed
     pass
+
+
+def xdist_group_of(nodeid: str, task_names) -> str:
+    """The worker group of a test under `make test`'s two pytest-xdist workers: a task's tests share
+    one group (its expert rollout, compiled and run once per process by
+    ``tests.tasks.helpers.expert_run``, serves its own file, the smoke test over every task and the
+    scene-purity case), every other test is grouped by its file, so a module-scoped fixture (a
+    trained tiny run) is built once, as in a single process."""
+    path = nodeid.split("::", 1)[0]
+    if path.startswith("tests/tasks/"):
+        param = nodeid.rsplit("[", 1)[-1].rstrip("]") if nodeid.endswith("]") else None
+        if param in task_names:
+            return f"task:{param}"
+        stem = path.rsplit("/", 1)[-1].removesuffix(".py").removeprefix("test_")
+        if stem in task_names:
+            return f"task:{stem}"
+    return path
+
+
+@pytest.hookimpl(optionalhook=True)  # a hook of pytest-xdist: unknown without it
+def pytest_xdist_make_scheduler(config, log):
+    """Hand pytest-xdist whole groups (``xdist_group_of``) instead of single tests. (Its own
+    ``--dist loadgroup`` reads ``xdist_group`` marks by rewriting ``item._nodeid``, which pytest 9
+    no longer reads: the marks would be ignored.)"""
+    from xdist.scheduler import LoadScopeScheduling
+
+    from readjax import tasks
+
+    names = set(tasks.names())
+
+    class TaskGroupScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return xdist_group_of(nodeid, names)
+
+    return TaskGroupScheduling(config, log)
 
 
 def pytest_collection_modifyitems(config, items):
