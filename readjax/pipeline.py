@@ -435,14 +435,20 @@ TIMING_FILE = "pipeline_timing.json"
 def record_timing(step: Step, seconds: float, load: float | None) -> None:
     """Add a finished step's wall clock to its task's ``pipeline_timing.json`` (committed beside the
     results, read by ``experiments.report``): seconds, when, and the machine's core count and load
-    average when it started (2-core timings beside another job are not idle-machine timings)."""
+    average when it started (2-core timings beside another job are not idle-machine timings).
+    A step that ran before under the same label (the same task regenerated on another machine, a
+    replicate grid) keeps its first record, which the cost table reads: the cost of producing the
+    task's results once; later runs are appended under ``repeats``, never overwriting it."""
     if step.timing is None:
         return
     f = step.timing
     record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
-    record["steps"][step.label] = {"kind": step.kind, "seconds": round(seconds, 1),
-                                   "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "cpus": os.cpu_count(),
-                                   "load_at_start": load, "platform": platform.platform()}
+    entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+             "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
+    if step.label in record["steps"]:
+        record.setdefault("repeats", {}).setdefault(step.label, []).append(entry)
+    else:
+        record["steps"][step.label] = entry
     f.parent.mkdir(parents=True, exist_ok=True)
     f.write_text(json.dumps(record, indent=2))
 

@@ -132,6 +132,15 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert "| task | generate | verify | train deterministic | train read | evaluate | media | total | cores | load |" in costs
     assert [ln.split(" |")[0] for ln in costs if ln.startswith("| ") and not ln.startswith("| task")] == [
         "| RT", "| PB", "| all 2"]
+    # a step run again (a replicate, a regenerated split) keeps the first record and adds a repeat
+    gen = next(s for s in steps if s.task == "reach_target" and s.kind == "generate")
+    first = timing["steps"][gen.label]
+    pipeline.record_timing(gen, 297.3, 4.3)
+    pipeline.record_timing(gen, 12.0, None)
+    timing = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
+    assert timing["steps"][gen.label] == first
+    assert [r["seconds"] for r in timing["repeats"][gen.label]] == [297.3, 12.0]
+    assert report.cost_lines(tmp_path / "results") == costs
     again = FakeRunner()
     assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
     assert again.calls == []
