@@ -20,7 +20,8 @@ Progress and an ETA cover the whole grid. A kill loses at most the step in progr
 same command again skips what is done. An evaluation counts as done when RESULTS holds it on a test
 split whose replay is on record (RESULTS/<task>/verify/), so a fresh machine with only the committed
 results/ regenerates, verifies and trains only what an unfinished evaluation needs. --shard i/n runs every n-th task from the i-th, so n
-processes (or machines sharing the folders) split the grid.
+processes (or machines sharing the folders) split the grid; --jobs J runs J steps at once in one process,
+each as soon as what it needs is finished (a GPU holds a dozen).
 
 A run name whose evaluations in RESULTS were trained with another recipe (preset, --set, --variant)
 is refused before any work: name the grid's runs apart with --run-name.
@@ -28,6 +29,7 @@ is refused before any work: name the grid's runs apart with --run-name.
 examples:
   python -m experiments.pipeline --tasks all --run-name read=read_v3_5k --run-name deterministic=deterministic_v3_5k
   python -m experiments.pipeline --tasks all --shard 0/2 ...    # and --shard 1/2 in a second shell
+  python -m experiments.pipeline --tasks RT PB PC CB --jobs 12 ...   # a GPU: a dozen steps at once
   python -m experiments.pipeline --tasks RT --methods read --read-N 0 10 100 --results my_results --dry-run
   python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic vpsde vpsde_cg read_l \
       --variant read_o_cd read_o read_o.sampler=cd --variant read_o_em read_o \
@@ -38,7 +40,9 @@ examples:
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
 from experiments import _cli
 
@@ -86,6 +90,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--brightness", type=float, default=pipeline.PipelineConfig.brightness,
                    help="the perturbed protocol's brightness factor on the test RGB")
     p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
+    p.add_argument("--jobs", type=_cli.positive_int, default=1,
+                   help="steps run at once, each as soon as what it needs is finished (a task's data and "
+                        "replay before its trainings, a training before its evaluations): 1 runs them in "
+                        "order on this terminal; more write each step's output to RUNS/pipeline_logs/"
+                        "<task>/<step>.log. A GPU holds a dozen (JAX's preallocation is turned off for them)")
     p.add_argument("--dry-run", action="store_true",
                    help="list the steps, each done / skip (not needed) / todo; run nothing")
     return p
@@ -129,8 +138,11 @@ def main(argv=None) -> int:
               "does not hold)")
         return 0
     try:
+        if args.jobs > 1:  # each process would otherwise claim 75 % of a GPU's memory
+            os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
         summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True),
-                                     prior=pipeline.prior_costs(cfg.results))
+                                     prior=pipeline.prior_costs(cfg.results), jobs=args.jobs,
+                                     log_dir=Path(cfg.runs) / "pipeline_logs" if args.jobs > 1 else None)
     except pipeline.PipelineError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

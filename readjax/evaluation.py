@@ -10,6 +10,7 @@ motions, which must succeed 100 % -- the check that an evaluation measures what 
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -117,7 +118,9 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        (out / f"{name}.json").write_text(json.dumps(result, indent=2))
+        tmp = out / f".{name}.json.tmp"  # then renamed: a reader (a parallel grid's copy) never sees half
+        tmp.write_text(json.dumps(result, indent=2))
+        os.replace(tmp, out / f"{name}.json")
         k = min(8, len(ds))
         viz.motion_overlay(ds.rgbd[:k], [("retrieved", plan["retrieved"][:k], (255, 200, 0)),
                                          ("planned", plan["motion"][:k], (0, 200, 255)),

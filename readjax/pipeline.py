@@ -139,6 +139,9 @@ class Step:
     timing: Path | None = None  # the task's pipeline_timing.json, where its wall clock is recorded
     users: list["Step"] = field(default_factory=list)  # the steps that need its output (none: a final one)
     wanted: Callable[[], bool] = field(default=lambda: True)  # a final step run only on a condition
+    # the steps that must be finished before this one starts (``run_steps`` with jobs > 1; one job
+    # runs the steps in their listed order, which respects these)
+    needs: list["Step"] = field(default_factory=list)
 
     def needed(self) -> bool:
         """Whether this step is wanted and, unless it is a final step, a step that uses its output is
@@ -374,9 +377,11 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                     "--results", str(results), "--min", "100"],
                     made=lambda d=d, c=count, task=task: verification.is_verified(
                         results, task, split_fingerprint(d, c), c)))
+        prepare[1].needs.append(prepare[0])  # the replay reads the generated test split
         steps += prepare
         outputs: list[Step] = []  # the task's evaluations and media: what the rest is for
         shared: dict[str, Step] = {}  # label -> the step training that label's autoencoder stage alone
+        trains: dict[str, Step] = {}  # label -> its training step
         for label in cfg.methods:
             method = cfg.method_of(label)
             run = runs / task / cfg.run_name(label)
@@ -389,21 +394,32 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                 if source not in shared:
                     shared[source] = Step("train", task, f"train {source} (autoencoder only)",
                                           train_argv(cfg, task, source, python) + ["--stage", "vae"],
-                                          made=(source_run / "vae" / "stop.json").exists)
+                                          made=(source_run / "vae" / "stop.json").exists,
+                                          needs=list(prepare))
                     steps.append(shared[source])
+                    if source in trains:  # never two trainings of one autoencoder at once (jobs > 1)
+                        trains[source].needs.append(shared[source])
             train = Step("train", task, f"train {label}", argv, made=marker.exists,
-                         after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})))
+                         after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})),
+                         needs=list(prepare))  # nothing trains before its task's replay holds
+            trains[label] = train
+            if label in shared:
+                train.needs.append(shared[label])
             if source is not None:
                 shared[source].users.append(train)
             uses = [evaluate_step(cfg, task, run, method, request, python, shown=label)
                     for request in eval_requests(method, cfg.read_N)]
             if label == "read":  # READ itself, not a variant: media, diagnosis and the paper's protocols
+                top = uses[list(cfg.read_N).index(max(cfg.read_N))]  # what media and diagnosis compare with
                 if cfg.media_episodes and max(cfg.read_N) > 0:
                     uses.append(media_step(cfg, task, run, python))
+                    uses[-1].needs.append(top)
                 protocol = protocol_requests(cfg)
                 if cfg.diagnose_below > 0:
-                    uses += [step for n, step in zip(cfg.read_N, oracle_steps(cfg, task, run, python))
-                             if EvalRequest(n, 1) not in protocol]  # the oracle protocol runs it anyway
+                    for n, step in zip(cfg.read_N, oracle_steps(cfg, task, run, python)):
+                        if EvalRequest(n, 1) not in protocol:  # the oracle protocol runs it anyway
+                            step.needs.append(top)
+                            uses.append(step)
                 uses += [evaluate_step(cfg, task, run, method, request, python) for request in protocol]
             train.users = uses
             steps += [train] + uses
@@ -412,6 +428,8 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
             step.users = outputs
     for s in steps:
         s.timing = results / s.task / TIMING_FILE
+        for u in s.users:  # what uses a step's output starts after it
+            u.needs.append(s)
     return steps
 
 
@@ -549,12 +567,25 @@ def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
 
 
 def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subprocess.run,
-              prior: dict[str, dict[str, list[float]]] | None = None) -> dict:
-    """Run the steps not yet done, in order; returns {"ran": k, "skipped": s, "seconds": {...}}.
-    Progress and an ETA (:func:`_eta`; ``prior``: :func:`prior_costs`) go to ``log``."""
+              prior: dict[str, dict[str, list[float]]] | None = None, jobs: int = 1, start=None,
+              log_dir: str | Path | None = None, poll: float = 1.0) -> dict:
+    """Run the steps not yet done; returns {"ran": k, "skipped": s, "seconds": {...}}. Progress and
+    an ETA (:func:`_eta`; ``prior``: :func:`prior_costs`) go to ``log``.
+
+    ``jobs`` = 1 runs them one after the other in their listed order (``runner``, its output on this
+    terminal). ``jobs`` > 1 keeps up to that many running at once (``start(argv, log_path)`` returns
+    a process with ``poll()``; default ``subprocess.Popen``), each started once every step it
+    ``needs`` is finished, in listed order otherwise: a GPU holds a dozen trainings, a CPU two. Each
+    step's output then goes to ``log_dir/<task>/<label>.log`` (None: this terminal, interleaved).
+    A failed step stops new starts; the running ones finish (and are kept) before the error."""
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
     todo = [s for s in steps if not s.done()]
     skipped = len(steps) - len(todo)
-    log(f"pipeline: {len(steps)} steps, {skipped} already done, {len(todo)} to run")
+    log(f"pipeline: {len(steps)} steps, {skipped} already done, {len(todo)} to run"
+        + (f", up to {jobs} at once" if jobs > 1 else ""))
+    if jobs > 1:
+        return _run_parallel(todo, skipped, jobs, log, start or _popen, prior, log_dir, poll)
     by_kind: dict[str, list[float]] = {}  # seconds of finished steps, by kind and by label
     by_label: dict[str, list[float]] = {}
     t_start = time.time()
@@ -573,14 +604,110 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
         if proc.returncode != 0:
             raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
                                 f"re-run: finished steps are skipped")
-        step.after()
-        if not step.made():
-            raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
-                                f"ground truth did not replay at 100 %)")
-        seconds = time.time() - t0
-        by_kind.setdefault(step.kind, []).append(seconds)
-        by_label.setdefault(step.label, []).append(seconds)
-        record_timing(step, seconds, load)
+        _finish(step, t0, load, by_kind, by_label)
+    return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
+
+
+def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: dict) -> None:
+    """A step's command exited 0: publish its output (``after``), check it is there, record its time."""
+    step.after()
+    if not step.made():
+        raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
+                            f"ground truth did not replay at 100 %)")
+    seconds = time.time() - t0
+    by_kind.setdefault(step.kind, []).append(seconds)
+    by_label.setdefault(step.label, []).append(seconds)
+    record_timing(step, seconds, load)
+
+
+def _popen(argv: list[str], log_path: Path | None):
+    if log_path is None:
+        return subprocess.Popen(argv)
+    with open(log_path, "w") as out:  # the child keeps its own descriptor
+        return subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT)
+
+
+def step_log_path(log_dir: str | Path, step: Step) -> Path:
+    """Where ``run_steps`` with jobs > 1 writes a step's output: LOG_DIR/<task>/<label as a file name>.log."""
+    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in step.label).strip("_")
+    return Path(log_dir) / step.task / f"{name}.log"
+
+
+def _tail(path: Path | None, lines: int = 15) -> str:
+    if path is None or not path.exists():
+        return ""
+    text = path.read_text(errors="replace").splitlines()[-lines:]
+    return "\n" + "\n".join("    " + ln for ln in text)
+
+
+def _run_parallel(todo: list[Step], skipped: int, jobs: int, log, start, prior, log_dir, poll: float) -> dict:
+    """``run_steps`` with up to ``jobs`` steps at once (see there)."""
+    pending = list(todo)
+    running: dict[int, tuple[Step, object, float, float | None, Path | None]] = {}  # id(step) -> ...
+    try:
+        return _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running)
+    finally:  # an error or a kill of this process: stop the steps it started (each resumes when re-run)
+        for _, proc, *_ in running.values():
+            if proc.poll() is None:
+                proc.terminate()
+
+
+def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running) -> dict:
+    by_kind: dict[str, list[float]] = {}
+    by_label: dict[str, list[float]] = {}
+    t_start, ran, failures, started = time.time(), 0, [], 0
+
+    def ready(step: Step) -> bool:
+        waiting = {id(s) for s in pending} | set(running)
+        return all(id(n) not in waiting and n.done() for n in step.needs)
+
+    while pending or running:
+        if not failures:
+            while len(running) < jobs:
+                step = next((s for s in pending if ready(s)), None)
+                if step is None:
+                    break
+                pending.remove(step)
+                started += 1
+                if step.done():  # finished meanwhile (another shard), or its condition no longer holds
+                    log(f"[{started}/{len(todo)}] {step.task}: {step.label}  (skipped: {step.status()})")
+                    skipped += 1
+                    continue
+                path = None if log_dir is None else step_log_path(log_dir, step)
+                if path is not None:
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                eta = _eta(pending + [s for s, *_ in running.values()] + [step], by_label, by_kind, prior)
+                log(f"[{started}/{len(todo)}] {step.task}: {step.label}  (started; {len(running) + 1} running, "
+                    f"elapsed {_hms(time.time() - t_start)}{', ETA ' + _hms(eta / jobs) if eta is not None else ''}"
+                    f"{', log ' + str(path) if path is not None else ''})")
+                load = _load()
+                running[id(step)] = (step, start(step.argv, path), time.time(), load, path)
+                ran += 1
+            if pending and not running:
+                stuck = pending[0]
+                raise PipelineError(f"{stuck.task}: `{stuck.label}` waits for steps that cannot finish: "
+                                    + ", ".join(f"`{n.label}` ({n.status()})" for n in stuck.needs if not n.done()))
+        elif not running:
+            break
+        finished = [(k, v) for k, v in running.items() if v[1].poll() is not None]
+        if not finished:
+            time.sleep(poll)
+            continue
+        for k, (step, proc, t0, load, path) in finished:
+            del running[k]
+            if proc.returncode != 0:
+                failures.append(f"{step.task}: `{step.label}` failed (exit {proc.returncode}){_tail(path)}")
+                log(f"failed  {step.task}: {step.label} (exit {proc.returncode}); waiting for the "
+                    f"{len(running)} running step(s), starting no more")
+                continue
+            try:
+                _finish(step, t0, load, by_kind, by_label)
+            except PipelineError as e:
+                failures.append(str(e))
+                continue
+            log(f"done    {step.task}: {step.label}  in {_hms(time.time() - t0)}")
+    if failures:
+        raise PipelineError("; ".join(failures) + "\nfix it and re-run: finished steps are skipped")
     return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
 
 

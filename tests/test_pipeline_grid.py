@@ -397,6 +397,9 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     assert _cli.run(pipeline_cli.main, argv + ["--run-name", "read"]) == 2
     assert "METHOD=NAME" in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, ["--tasks", "XX", "--dry-run"]) == 2
+    with pytest.raises(SystemExit):
+        _cli.run(pipeline_cli.main, argv + ["--jobs", "0"])
+    assert "--jobs" in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, argv + ["--variant", "read_kin"]) == 2
     assert "LABEL METHOD" in capsys.readouterr().err
     variant = ["--methods", "read", "--variant", "read_kin", "read", "vae.kinematic=true",
@@ -404,3 +407,137 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     assert _cli.run(pipeline_cli.main, argv + variant) == 0
     out = capsys.readouterr().out
     assert "todo  reach_target: train read_kin" in out and "500th neighbour --N 1" in out
+
+
+class _FakeProc:
+    """A step's process for ``run_steps(jobs > 1)``: its command's effects happen at start (the
+    FakeRunner), its exit is seen only after ``polls`` polls, so steps overlap."""
+
+    def __init__(self, returncode, polls, on_exit):
+        self.returncode, self._left, self._on_exit = None, polls, on_exit
+        self._code = returncode
+
+    def poll(self):
+        if self.returncode is None:
+            if self._left > 0:
+                self._left -= 1
+                return None
+            self.returncode = self._code
+            self._on_exit()
+        return self.returncode
+
+    def terminate(self):
+        self.returncode = -15
+
+
+class _Starter:
+    """Starts fake processes and records when each step started and exited."""
+
+    def __init__(self, runner, seed=0, fail=None):
+        import random
+        self.runner, self.rng, self.fail = runner, random.Random(seed), fail
+        self.events, self.running, self.peak = [], 0, 0
+
+    def __call__(self, argv, log_path):
+        label = tuple(argv)
+        self.events.append(("start", label))
+        self.running += 1
+        self.peak = max(self.peak, self.running)
+        code = self.runner(argv).returncode
+        if self.fail and self.fail(argv):
+            code = 3
+            if log_path is not None:
+                log_path.write_text("line 1\nTraceback: the step's own error\n")
+
+        def on_exit():
+            self.running -= 1
+            self.events.append(("exit", label))
+
+        return _FakeProc(code, self.rng.randrange(0, 4), on_exit)
+
+
+def _check_order(steps, events):
+    """Every started step started after each step it needs had exited (or was never run here)."""
+    when = {}
+    for i, (kind, label) in enumerate(events):
+        when.setdefault((kind, label), i)
+    for s in steps:
+        start = when.get(("start", tuple(s.argv)))
+        if start is None:
+            continue
+        for n in s.needs:
+            exit_ = when.get(("exit", tuple(n.argv)))
+            assert exit_ is None and ("start", tuple(n.argv)) not in when or exit_ < start, (s.label, n.label)
+
+
+def test_parallel_steps_wait_for_what_they_need_and_give_the_same_results(tmp_path):
+    """jobs > 1: at most that many steps at once, none before what it needs (data and replay before
+    training, READ's autoencoder trained once before its variants and READ's denoiser, an
+    evaluation before the media and the diagnosis that compare with it), and the same results as
+    one step at a time."""
+    variant = dict(methods=("read", "deterministic", "read_sf"),
+                   variants=(("read_sf", "read", ("sde.self_feed=0.5",)),), read_N=(0, 100))
+    seq = _cfg(tmp_path / "seq", **variant)
+    pipeline.run_steps(pipeline.plan_steps(seq), log=lambda m: None, runner=FakeRunner(read_top=0, media_outcome=0))
+    par = _cfg(tmp_path / "par", **variant)
+    steps = pipeline.plan_steps(par)
+    shared = next(s for s in steps if s.label.endswith("(autoencoder only)"))
+    train_read = next(s for s in steps if s.label == "train read" and s.task == shared.task)
+    assert shared in train_read.needs  # one autoencoder, never trained twice at once
+    media = next(s for s in steps if s.kind == "media")
+    assert any(n.label == "evaluate read --N 100" for n in media.needs)
+    for seed in range(3):
+        root = tmp_path / f"par{seed}"
+        cfg = _cfg(root, **variant)
+        steps = pipeline.plan_steps(cfg)
+        starter, lines = _Starter(FakeRunner(read_top=0, media_outcome=0), seed), []
+        out = pipeline.run_steps(steps, log=lines.append, jobs=3, start=starter, poll=0,
+                                 log_dir=root / "logs")
+        assert starter.peak == 3 and starter.running == 0
+        _check_order(steps, starter.events)
+        assert out["ran"] == sum(e[0] == "start" for e in starter.events)
+        files = lambda r: sorted(str(f.relative_to(r)) for f in (r / "results").rglob("*")  # noqa: E731
+                                 if f.name != "pipeline_timing.json")
+        assert files(root) == files(tmp_path / "seq")
+        assert any("started; 3 running" in ln for ln in lines) and any(ln.startswith("done") for ln in lines)
+        assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=3,
+                                  start=_Starter(FakeRunner()), poll=0)["ran"] == 0
+
+
+def test_a_parallel_failure_stops_new_steps_and_shows_the_steps_log(tmp_path):
+    cfg = _cfg(tmp_path)
+    starter = _Starter(FakeRunner(), fail=lambda argv: "--model" in argv and "deterministic" in argv)
+    with pytest.raises(pipeline.PipelineError, match="(?s)train deterministic` failed.*the step's own error"):
+        pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=2, start=starter, poll=0,
+                           log_dir=tmp_path / "logs")
+    assert starter.running == 0  # the running steps finished; none started after the failure
+    failed = next(i for i, (kind, argv) in enumerate(starter.events)
+                  if kind == "exit" and "deterministic" in argv and "--model" in argv)
+    assert not any(kind == "start" for kind, _ in starter.events[failed:])
+    # a failed replay: nothing is trained on that task
+    starter = _Starter(FakeRunner(verify_rate=0.97))
+    with pytest.raises(pipeline.PipelineError, match="ground truth did not replay"):
+        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path / "b")), log=lambda m: None, jobs=4,
+                           start=starter, poll=0)
+    assert not any("experiments.train" in e[1] for e in starter.events)
+
+
+def test_parallel_steps_run_as_processes_with_their_own_logs(tmp_path):
+    """The default starter: real processes, each step's output in its own log file."""
+    import sys
+    out = tmp_path / "out"
+    out.mkdir()
+    first = pipeline.Step("generate", "reach_target", "make a", [sys.executable, "-c", f"print('made a'); open(r'{out}/a', 'w')"],
+                          made=(out / "a").exists)
+    second = [pipeline.Step("train", "reach_target", f"use a {k}", [
+        sys.executable, "-c", f"import os, time; assert os.path.exists(r'{out}/a'); time.sleep(0.2); "
+                              f"print('used'); open(r'{out}/b{k}', 'w')"],
+        made=(out / f"b{k}").exists, needs=[first]) for k in range(3)]
+    first.users = second
+    lines = []
+    summary = pipeline.run_steps([first, *second], log=lines.append, jobs=2, log_dir=tmp_path / "logs", poll=0.05)
+    assert summary["ran"] == 4 and all((out / f"b{k}").exists() for k in range(3))
+    assert (tmp_path / "logs" / "reach_target" / "make_a.log").read_text() == "made a\n"
+    assert (tmp_path / "logs" / "reach_target" / "use_a_2.log").read_text() == "used\n"
+    with pytest.raises(ValueError, match="jobs"):
+        pipeline.run_steps([first], jobs=0)
