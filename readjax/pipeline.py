@@ -575,7 +575,8 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
     ``jobs`` = 1 runs them one after the other in their listed order (``runner``, its output on this
     terminal). ``jobs`` > 1 keeps up to that many running at once (``start(argv, log_path)`` returns
     a process with ``poll()``; default ``subprocess.Popen``), each started once every step it
-    ``needs`` is finished, in listed order otherwise: a GPU holds a dozen trainings, a CPU two. Each
+    ``needs`` is finished, from the task with the fewest running steps first, in listed order otherwise:
+    a GPU holds a dozen trainings, a CPU two. Each
     step's output then goes to ``log_dir/<task>/<label>.log`` (None: this terminal, interleaved).
     A failed step stops new starts; the running ones finish (and are kept) before the error."""
     if jobs < 1:
@@ -664,9 +665,13 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
     while pending or running:
         if not failures:
             while len(running) < jobs:
-                step = next((s for s in pending if ready(s)), None)
-                if step is None:
+                candidates = [s for s in pending if ready(s)]
+                if not candidates:
                     break
+                # spread over the tasks (the task with the fewest steps running first), in listed order
+                # otherwise: every task's READ trains before any task's baselines fill the slots
+                busy = [s.task for s, *_ in running.values()]
+                step = min(candidates, key=lambda s: busy.count(s.task))
                 pending.remove(step)
                 started += 1
                 if step.done():  # finished meanwhile (another shard), or its condition no longer holds

@@ -494,6 +494,8 @@ def test_parallel_steps_wait_for_what_they_need_and_give_the_same_results(tmp_pa
         out = pipeline.run_steps(steps, log=lines.append, jobs=3, start=starter, poll=0,
                                  log_dir=root / "logs")
         assert starter.peak == 3 and starter.running == 0
+        trainings = [argv for kind, argv in starter.events if kind == "start" and "experiments.train" in argv]
+        assert {argv[argv.index("--task") + 1] for argv in trainings[:2]} == {"reach_target", "push_button"}
         _check_order(steps, starter.events)
         assert out["ran"] == sum(e[0] == "start" for e in starter.events)
         files = lambda r: sorted(str(f.relative_to(r)) for f in (r / "results").rglob("*")  # noqa: E731
