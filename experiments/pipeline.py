@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -100,6 +101,10 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     from readjax import pipeline, tasks
@@ -140,6 +145,8 @@ def main(argv=None) -> int:
     try:
         if args.jobs > 1:  # each process would otherwise claim 75 % of a GPU's memory
             os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+        # `kill` as Ctrl-C: the running steps are stopped with the grid, not left running unwatched
+        signal.signal(signal.SIGTERM, _interrupt)
         summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True),
                                      prior=pipeline.prior_costs(cfg.results), jobs=args.jobs,
                                      log_dir=Path(cfg.runs) / "pipeline_logs" if args.jobs > 1 else None)

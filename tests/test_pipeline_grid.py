@@ -543,3 +543,18 @@ def test_parallel_steps_run_as_processes_with_their_own_logs(tmp_path):
     assert (tmp_path / "logs" / "reach_target" / "use_a_2.log").read_text() == "used\n"
     with pytest.raises(ValueError, match="jobs"):
         pipeline.run_steps([first], jobs=0)
+
+
+def test_an_interrupted_parallel_grid_stops_its_running_steps(tmp_path):
+    """Ctrl-C or `kill` (the CLI turns SIGTERM into the same) stops the steps the grid started."""
+    started = []
+
+    def start(argv, log_path):
+        if started:
+            raise KeyboardInterrupt
+        started.append(_FakeProc(0, 10 ** 6, lambda: None))
+        return started[0]
+
+    with pytest.raises(KeyboardInterrupt):
+        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, jobs=2, start=start, poll=0)
+    assert started[0].returncode == -15
