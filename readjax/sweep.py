@@ -23,7 +23,12 @@ from readjax.planner import Planner
 
 TEST_TIME = ("N",)
 TRAIN_KEYS = {"K": "train.K", "L": "sde.lam", "T": "sde.theta1"}
-DEFAULTS = {"N": config.DEFAULT_N, "K": 3, "L": 0.5, "T": 2.0}  # the paper's setting A
+DEFAULTS = {"N": config.DEFAULT_N, "K": 3, "L": 0.5, "T": 2.0}  # the paper's setting A (its paper preset's)
+
+
+def setting_of(configs: dict, n: int = config.DEFAULT_N) -> dict:
+    """The Table-7 values a run is trained with (its configs after the preset and the overrides) at N."""
+    return {"N": n, "K": configs["train"].K, "L": configs["sde"].lam, "T": configs["sde"].theta1}
 CELL_PREFIX = "sweep_"  # a cell's evaluation is RUN/eval/<CELL_PREFIX>N<n>.json (reports list it by sweep)
 
 
@@ -83,6 +88,9 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
                                 image_size=meta.get("image_size", 64)), progress=progress)
     test_ds = store.load_dataset(test_dir, limit=cfg.episodes)
     cells, vae_source = [], None
+    # setting A of this sweep: its preset's own values (the paper preset: the paper's A; the cpu preset
+    # trains on K = 50), with the fixed --set overrides
+    reference = setting_of(config.override(config.presets(cfg.preset), list(cfg.sets)))
     for combo in combos:
         values = dict(zip(train_keys, combo))
         run_name = "_".join(f"{k}{_label(v)}" for k, v in values.items()) or "default"
@@ -106,7 +114,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
                                              videos=0)
                 result = evaluation.evaluate(planner, test_ds, ecfg, out_dir=run_dir / "eval", name=name,
                                              progress=progress)
-            full = {**DEFAULTS, **values, "N": n}
+            full = setting_of(configs, n)  # what this cell trained with, not the paper's defaults
             cells.append({**full, "run": str(run_dir), "success": result["success_rate"],
                           "table": result["table"], "seeds": result["seeds"],
                           "outcomes": [int(x) for x in result["success"]]})
@@ -118,7 +126,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         del planner
         _runtime.release_compiled_if_crowded()
     out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
-           "grid": cfg.grid, "episodes": cfg.episodes, "cells": cells}
+           "grid": cfg.grid, "episodes": cfg.episodes, "reference": reference, "cells": cells}
     for folder in [sweep_dir] + ([Path(cfg.results) / task / cfg.name] if cfg.results else []):
         write_sweep(out, folder)
     return out
@@ -134,20 +142,22 @@ def write_sweep(sweep: dict, folder: Path) -> None:
     plot_sweep(sweep, folder / "sweep.png")
 
 
-def _is_default(cell: dict) -> bool:
-    return all(cell[k] == v for k, v in DEFAULTS.items())
+def _is_default(cell: dict, reference: dict) -> bool:
+    return all(cell[k] == v for k, v in reference.items())
 
 
 def format_table7(sweep: dict) -> str:
     """The layout of the paper's Table 7: setting, N, K, L, T, success (%); where the cells carry
-    their per-episode outcomes and the sweep holds the paper's setting A, each other cell against A
-    on the same episodes (+ episodes only it solves / - only A solves, exact McNemar p)."""
+    their per-episode outcomes and the sweep holds its setting A (``reference``: its preset's values
+    at N = 100; the paper's A for a sweep recorded without one), each other cell against A on the
+    same episodes (+ episodes only it solves / - only A solves, exact McNemar p)."""
     code = sweep["code"]
-    a = next((c for c in sweep["cells"] if _is_default(c) and "outcomes" in c), None)
+    reference = sweep.get("reference", DEFAULTS)
+    a = next((c for c in sweep["cells"] if _is_default(c, reference) and "outcomes" in c), None)
     lines = [f"| setting | N | K | L | T | {code} |" + (" vs A |" if a else ""),
              "|---|---|---|---|---|---|" + ("---|" if a else "")]
     for i, c in enumerate(sweep["cells"]):
-        tag = "A (default)" if _is_default(c) else chr(ord("B") + i) if i < 25 else str(i)
+        tag = "A (default)" if _is_default(c, reference) else chr(ord("B") + i) if i < 25 else str(i)
         row = f"| {tag} | {c['N']} | {c['K']} | {_label(c['L'])} | {_label(c['T'])} | {100 * c['success']:.1f} |"
         if a:
             vs = ("–" if c is a or "outcomes" not in c else

@@ -279,6 +279,10 @@ def test_sweep_resumes_and_reports(run, tmp_path):
     sweep_dir = tmp_path / "reach_target" / "sweep"
     cells = json.loads((sweep_dir / "sweep.json").read_text())["cells"]
     assert [(c["N"], c["L"]) for c in cells] == [(0, 0.3), (1, 0.3), (0, 0.5), (1, 0.5)]
+    # each cell records what it trained with: the cpu preset's K = 50, not the paper's A (K = 3)
+    recorded = json.loads((sweep_dir / "sweep.json").read_text())
+    assert recorded["reference"] == {"N": 100, "K": 50, "L": 0.5, "T": 2.0}
+    assert {c["K"] for c in cells} == {50} and {c["T"] for c in cells} == {2.0}
     assert all(len(c["outcomes"]) == len(c["seeds"]) == 2 for c in cells)  # per episode, for paired tests
     committed = tmp_path / "committed" / "reach_target" / "sweep"
     assert json.loads((committed / "sweep.json").read_text())["cells"] == cells and (committed / "sweep.png").exists()

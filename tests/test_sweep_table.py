@@ -29,3 +29,14 @@ def test_cells_are_paired_with_setting_a(tmp_path):
     folder = tmp_path / "results" / "reach_target" / "sweep"
     assert json.loads((folder / "sweep.json").read_text()) == sw
     assert (folder / "table.md").read_text() == sweep.format_table7(sw) and (folder / "sweep.png").stat().st_size > 0
+
+
+def test_setting_a_is_the_sweeps_own_preset(tmp_path):
+    """A sweep under the cpu preset (K = 50) is paired against its own preset's setting, and a cell
+    trained with the paper's K = 3 is one of its departures, not A."""
+    ref = {"N": 100, "K": 50, "L": 0.5, "T": 2.0}
+    sw = {"task": "push_button", "code": "PB", "model": "read", "grid": {"K": [3, 50]}, "episodes": 4,
+          "reference": ref, "cells": [_cell(100, [1, 0, 0, 0], K=3), _cell(100, [1, 1, 1, 1], K=50)]}
+    lines = sweep.format_table7(sw).splitlines()
+    assert lines[2] == "| B | 100 | 3 | 0.5 | 2 | 25.0 | +0 / -3, p=0.25 |"
+    assert lines[3] == "| A (default) | 100 | 50 | 0.5 | 2 | 100.0 | – |"
