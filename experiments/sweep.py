@@ -8,6 +8,11 @@ examples:
   python -m experiments.sweep --task reach_target --grid N=0,1,10,100 L=0.1,0.5,1.0
   python -m experiments.sweep --task PB --grid N=1,10,100 --episodes 50
   python -m experiments.sweep --task RT --grid N=0,1,10,100 --results results/   # committed, with paired tests vs A
+  python -m experiments.sweep --task PB --grid N=0,1,10,100 K=1,3,10 L=0.1,0.5,1.0 T=0.1,2.0 --vary one \
+      --reference-run runs/push_button/read --results results/   # Table 7: each key alone from A, A not retrained
+
+Setting A is the preset's own (the paper preset: the paper's N = 100, K = 3, L = 0.5, T = 2.0; the cpu
+preset trains on K = 50), with the --set overrides; every cell records the values it trained with.
 """
 
 from __future__ import annotations
@@ -36,6 +41,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--results", default=None,
                    help="also write sweep.json, table.md and sweep.png to RESULTS/<task>/<name>/ (small; commit them: "
                         "`experiments.report --runs RESULTS` shows the sweep)")
+    p.add_argument("--vary", choices=("all", "one"), default="all",
+                   help="all: every combination of the grid's values; one: Table 7's layout, setting A and each "
+                        "key varied alone from it (N at A's training only)")
+    p.add_argument("--reference-run", default=None, metavar="RUN",
+                   help="a finished run trained as setting A (same --preset, --set and data; checked): A's "
+                        "cell evaluates it instead of training again")
     p.add_argument("--quiet", action="store_true")
     return p
 
@@ -46,7 +57,8 @@ def main(argv=None) -> None:
 
     cfg = SweepConfig(task=args.task, grid=parse_grid(args.grid), model=args.model, preset=args.preset,
                       data=args.data, out=args.out, name=args.name, episodes=args.episodes,
-                      sets=tuple(args.set), batch_size=args.batch_size, results=args.results)
+                      sets=tuple(args.set), batch_size=args.batch_size, results=args.results,
+                      reference_run=args.reference_run, vary=args.vary)
     result = run_sweep(cfg, progress=not args.quiet)
     print(format_table7(result))
 

@@ -69,6 +69,12 @@ class SweepConfig:
     sets: tuple = ()
     batch_size: int = 50
     results: str | None = None  # also write sweep.json / table.md / sweep.png to RESULTS/<task>/<name>/
+    # a finished run trained exactly as setting A (e.g. the grid's READ run): the cell of that setting
+    # evaluates it instead of training it again (checked: its recipe and training set must match)
+    reference_run: str | None = None
+    # "all": every combination of the grid's values; "one": Table 7's layout, setting A and each key
+    # varied alone from it (the other keys at A's values; N varied at A's training only)
+    vary: str = "all"
 
 
 def _label(v) -> str:
@@ -80,7 +86,8 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
     sweep_dir = Path(cfg.out) / task / cfg.name
     train_keys = [k for k in TRAIN_KEYS if k in cfg.grid]
     n_values = cfg.grid.get("N", [DEFAULTS["N"]])
-    combos = list(itertools.product(*[cfg.grid[k] for k in train_keys])) or [()]
+    if cfg.vary not in ("all", "one"):
+        raise ValueError(f"vary must be 'all' or 'one', got {cfg.vary!r}")
     test_dir = store.split_dir(cfg.data, task, "test")
     if not test_dir.exists() or store.read_progress(test_dir).kept < cfg.episodes:
         meta = store.read_meta(store.split_dir(cfg.data, task, "train")) or {}
@@ -91,31 +98,39 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
     # setting A of this sweep: its preset's own values (the paper preset: the paper's A; the cpu preset
     # trains on K = 50), with the fixed --set overrides
     reference = setting_of(config.override(config.presets(cfg.preset), list(cfg.sets)))
-    for combo in combos:
-        values = dict(zip(train_keys, combo))
+    for values in cell_settings(cfg.grid, reference, cfg.vary):
+        at_a = all(values[k] == reference[k] for k in values)
         run_name = "_".join(f"{k}{_label(v)}" for k, v in values.items()) or "default"
         run_dir = sweep_dir / run_name
         overrides = list(cfg.sets) + [f"{TRAIN_KEYS[k]}={v}" for k, v in values.items()]
         configs = config.override(config.presets(cfg.preset), overrides)
-        # the autoencoder ignores K, L, T: the first cell trains it, the others start from it
-        shared = {"vae_from": vae_source} if vae_source is not None and "vae" in methods.stages(cfg.model) else {}
-        methods.module(cfg.model).train(task, cfg.data, run_dir, configs, cfg.preset, progress=progress, **shared)
-        if (run_dir / "vae").exists():
-            vae_source = vae_source or run_dir
+        trained = run_dir
+        if cfg.reference_run and setting_of(configs) == reference:
+            trained = Path(cfg.reference_run)
+            check_reference_run(trained, task, cfg.model, configs)
+        else:
+            # the autoencoder ignores K, L, T: the first cell trains it, the others start from it
+            shared = {"vae_from": vae_source} if vae_source is not None and "vae" in methods.stages(cfg.model) else {}
+            methods.module(cfg.model).train(task, cfg.data, run_dir, configs, cfg.preset, progress=progress, **shared)
+        if (trained / "vae").exists():
+            vae_source = vae_source or trained
         planner = None
-        for n in n_values:
+        # Table 7's layout: N varied at A's training (which is also evaluated at A's N, the pairs' anchor),
+        # every other cell at A's N
+        ns = n_values if cfg.vary == "all" else sorted(set(n_values) | {reference["N"]}) if at_a else [reference["N"]]
+        for n in ns:
             name = f"{CELL_PREFIX}N{n}"
-            f = run_dir / "eval" / f"{name}.json"
+            f = run_dir / "eval" / f"{name}.json"  # in the sweep's folder, also for a reference run's cell
             if f.exists():
                 result = json.loads(f.read_text())
             else:
-                planner = planner or Planner.load(run_dir, data_root=cfg.data)
+                planner = planner or Planner.load(trained, data_root=cfg.data)
                 ecfg = evaluation.EvalConfig(episodes=cfg.episodes, N=n, batch_size=min(cfg.batch_size, cfg.episodes),
                                              videos=0)
                 result = evaluation.evaluate(planner, test_ds, ecfg, out_dir=run_dir / "eval", name=name,
                                              progress=progress)
             full = setting_of(configs, n)  # what this cell trained with, not the paper's defaults
-            cells.append({**full, "run": str(run_dir), "success": result["success_rate"],
+            cells.append({**full, "run": str(trained), "success": result["success_rate"],
                           "table": result["table"], "seeds": result["seeds"],
                           "outcomes": [int(x) for x in result["success"]]})
             if progress:
@@ -126,10 +141,42 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         del planner
         _runtime.release_compiled_if_crowded()
     out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
-           "grid": cfg.grid, "episodes": cfg.episodes, "reference": reference, "cells": cells}
+           "grid": cfg.grid, "episodes": cfg.episodes, "reference": reference, "vary": cfg.vary, "cells": cells}
     for folder in [sweep_dir] + ([Path(cfg.results) / task / cfg.name] if cfg.results else []):
         write_sweep(out, folder)
     return out
+
+
+def cell_settings(grid: dict, reference: dict, vary: str = "all") -> list[dict]:
+    """The trained settings of a sweep, each {key: value} over the grid's training keys (K, L, T):
+    ``vary`` "all" every combination; "one" Table 7's: setting A first, then each key's other values
+    with the rest at A."""
+    keys = [k for k in TRAIN_KEYS if k in grid]
+    if vary == "all":
+        return [dict(zip(keys, combo)) for combo in itertools.product(*[grid[k] for k in keys])] or [{}]
+    a = {k: reference[k] for k in keys}
+    return [a] + [{**a, k: v} for k in keys for v in grid[k] if v != reference[k]]
+
+
+def check_reference_run(run: Path, task: str, model: str, configs: dict) -> None:
+    """A reference run stands in for a cell only if it is that cell: the same task and method, every
+    config field the recipe holds equal (inference-only and data-derived ones aside), training
+    finished. Its training set is checked when it is loaded (``Planner.load``)."""
+    from readjax.methods.base import read_run
+    from readjax.pipeline import recipe_differences
+
+    spec = read_run(run)
+    if spec.get("task") != task or spec.get("method") != model:
+        raise ValueError(f"--reference-run {run}: a {spec.get('method')} run on {spec.get('task')}, "
+                         f"not {model} on {task}")
+    wanted = json.loads(json.dumps(config.configs_to_dict(configs, list(spec["configs"]))))
+    differ = recipe_differences(spec["configs"], wanted)
+    if differ:
+        raise ValueError(f"--reference-run {run} was trained otherwise than this sweep's setting A: "
+                         f"{', '.join(differ)} differ (same --preset and --set?)")
+    unfinished = [s for s in methods.stages(model) if not (run / s / "stop.json").exists()]
+    if unfinished:
+        raise ValueError(f"--reference-run {run}: stage(s) {', '.join(unfinished)} not trained")
 
 
 def write_sweep(sweep: dict, folder: Path) -> None:
@@ -176,10 +223,13 @@ def plot_sweep(sweep: dict, path: Path) -> None:
 
     keys = list(sweep["grid"])
     fig, axes = plt.subplots(1, len(keys), figsize=(4 * len(keys), 3.2), squeeze=False)
+    reference = sweep.get("reference", DEFAULTS)
     for ax, key in zip(axes[0], keys):
         others = [k for k in keys if k != key]
         groups: dict = {}
         for c in sweep["cells"]:
+            if sweep.get("vary") == "one" and any(c[k] != reference[k] for k in others):
+                continue  # Table 7's layout: a key's panel shows it varied alone from setting A
             groups.setdefault(tuple(c[k] for k in others), []).append((c[key], 100 * c["success"]))
         for g, pts in groups.items():
             pts.sort()

@@ -3,6 +3,7 @@ and the planner's input checks."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import jax
@@ -302,6 +303,30 @@ def test_sweep_resumes_and_reports(run, tmp_path):
     # a root holding only a sweep: its cells appear in the sweep's Table-7 layout, not as method rows
     assert "## Sweep: read on reach_target (2 episodes per cell)" in text and "| setting | N | K | L | T | RT |" in text
     assert "| method |" not in text and str(sweep_dir / "L0.3" / "eval" / "sweep_N0.json") in text
+
+
+def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, tmp_path):
+    """--vary one --reference-run: setting A is the finished run (evaluated at each N, not trained
+    again), each other value is trained alone from A, starting from A's autoencoder."""
+    from readjax import sweep as sweep_lib
+
+    data, trained = run
+    cfg = sweep_lib.SweepConfig(task="RT", grid={"N": [0, 1], "T": [0.5, 2.0]}, data=str(data), out=str(tmp_path),
+                                episodes=2, batch_size=2, sets=tuple(TINY), reference_run=str(trained), vary="one")
+    out = sweep_lib.run_sweep(cfg, progress=False)
+    cells = [(c["N"], c["T"], c["run"]) for c in out["cells"]]
+    sweep_dir = tmp_path / "reach_target" / "sweep"
+    assert cells == [(0, 2.0, str(trained)), (1, 2.0, str(trained)), (100, 2.0, str(trained)),
+                     (100, 0.5, str(sweep_dir / "T0.5"))]
+    assert not (sweep_dir / "T2" / "vae").exists() and (sweep_dir / "T2" / "eval" / "sweep_N1.json").exists()
+    assert not (trained / "eval" / "sweep_N1.json").exists()  # the reference run's folder is left as it was
+    assert json.loads((sweep_dir / "T0.5" / "vae" / "stage.json").read_text())["dataset_fingerprint"] == \
+        json.loads((trained / "vae" / "stage.json").read_text())["dataset_fingerprint"]
+    assert "| A (default) | 100 | 50 | 0.5 | 2 |" in sweep_lib.format_table7(out)
+    # a run trained otherwise is refused before any work
+    other = dataclasses.replace(cfg, sets=tuple(TINY) + ("sde.lam=0.3",), name="other")
+    with pytest.raises(ValueError, match="sde.lam"):
+        sweep_lib.run_sweep(other, progress=False)
 
 
 def test_ae_report_on_the_trained_run(run, tmp_path, capsys):

@@ -40,3 +40,13 @@ def test_setting_a_is_the_sweeps_own_preset(tmp_path):
     lines = sweep.format_table7(sw).splitlines()
     assert lines[2] == "| B | 100 | 3 | 0.5 | 2 | 25.0 | +0 / -3, p=0.25 |"
     assert lines[3] == "| A (default) | 100 | 50 | 0.5 | 2 | 100.0 | – |"
+
+
+def test_table7_settings_vary_one_key_at_a_time():
+    ref = {"N": 100, "K": 50, "L": 0.5, "T": 2.0}
+    grid = {"N": [1, 100], "K": [1, 3], "L": [0.1, 0.5], "T": [0.1]}
+    assert sweep.cell_settings(grid, ref, "one") == [
+        {"K": 50, "L": 0.5, "T": 2.0}, {"K": 1, "L": 0.5, "T": 2.0}, {"K": 3, "L": 0.5, "T": 2.0},
+        {"K": 50, "L": 0.1, "T": 2.0}, {"K": 50, "L": 0.5, "T": 0.1}]
+    assert len(sweep.cell_settings(grid, ref, "all")) == 4
+    assert sweep.cell_settings({"N": [1]}, ref, "one") == [{}]
