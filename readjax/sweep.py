@@ -140,10 +140,13 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         # cap on memory mappings (see readjax._runtime).
         del planner
         _runtime.release_compiled_if_crowded()
-    out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
-           "grid": cfg.grid, "episodes": cfg.episodes, "reference": reference, "vary": cfg.vary, "cells": cells}
-    for folder in [sweep_dir] + ([Path(cfg.results) / task / cfg.name] if cfg.results else []):
-        write_sweep(out, folder)
+        # the cells so far, after each training: a sweep of hours leaves its finished cells in
+        # RESULTS (committed) even if this machine goes before the last one
+        out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
+               "grid": cfg.grid, "episodes": cfg.episodes, "reference": reference, "vary": cfg.vary,
+               "cells": list(cells)}
+        for folder in [sweep_dir] + ([Path(cfg.results) / task / cfg.name] if cfg.results else []):
+            write_sweep(out, folder)
     return out
 
 

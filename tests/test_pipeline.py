@@ -305,12 +305,16 @@ def test_sweep_resumes_and_reports(run, tmp_path):
     assert "| method |" not in text and str(sweep_dir / "L0.3" / "eval" / "sweep_N0.json") in text
 
 
-def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, tmp_path):
+def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, tmp_path, monkeypatch):
     """--vary one --reference-run: setting A is the finished run (evaluated at each N, not trained
-    again), each other value is trained alone from A, starting from A's autoencoder."""
+    again), each other value is trained alone from A, starting from A's autoencoder; the table is
+    written after each setting, so a sweep cut short keeps its finished cells."""
     from readjax import sweep as sweep_lib
 
     data, trained = run
+    written, write = [], sweep_lib.write_sweep
+    monkeypatch.setattr(sweep_lib, "write_sweep",
+                        lambda sw, folder: (written.append(len(sw["cells"])), write(sw, folder)))
     cfg = sweep_lib.SweepConfig(task="RT", grid={"N": [0, 1], "T": [0.5, 2.0]}, data=str(data), out=str(tmp_path),
                                 episodes=2, batch_size=2, sets=tuple(TINY), reference_run=str(trained), vary="one")
     out = sweep_lib.run_sweep(cfg, progress=False)
@@ -323,6 +327,7 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
     assert json.loads((sweep_dir / "T0.5" / "vae" / "stage.json").read_text())["dataset_fingerprint"] == \
         json.loads((trained / "vae" / "stage.json").read_text())["dataset_fingerprint"]
     assert "| A (default) | 100 | 50 | 0.5 | 2 |" in sweep_lib.format_table7(out)
+    assert written == [3, 4]  # after A's three cells, then after T = 0.5's
     # a run trained otherwise is refused before any work
     other = dataclasses.replace(cfg, sets=tuple(TINY) + ("sde.lam=0.3",), name="other")
     with pytest.raises(ValueError, match="sde.lam"):
