@@ -672,7 +672,7 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
                 # otherwise: every task's READ trains before any task's baselines fill the slots
                 busy = [s.task for s, *_ in running.values()]
                 step = min(candidates, key=lambda s: busy.count(s.task))
-                pending.remove(step)
+                pending[:] = [s for s in pending if s is not step]  # by identity: Step's == compares fields
                 started += 1
                 if step.done():  # finished meanwhile (another shard), or its condition no longer holds
                     log(f"[{started}/{len(todo)}] {step.task}: {step.label}  (skipped: {step.status()})")
