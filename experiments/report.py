@@ -64,7 +64,8 @@ def main(argv=None) -> None:
         sections.append(lambda results, chart: main_table.lines(results, read_run, det_run, chart,
                                                                 preset_name=args.main_preset))
     if args.claims is not None:
-        sections.append(lambda results, chart: claims.lines(results, roles, preset_name=args.main_preset))
+        sections.append(lambda results, chart: claims.lines(results, roles, preset_name=args.main_preset,
+                                                            doc_dir=chart.parent))
 
     def main_section(results, chart):  # the sections shown first: the main table, then the claims
         return [line for section in sections for line in section(results, chart)]

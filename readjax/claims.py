@@ -15,7 +15,9 @@ where both sides exist (episodes paired by task and seed) it gives the verdict:
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -127,9 +129,44 @@ def evaluate_claims(results: list[dict], runs: dict[str, str], refinement: tuple
     return out
 
 
-def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu") -> list[str]:
+def training_lines(results: list[dict], runs: dict[str, str], doc_dir: Path | None = None) -> list[str]:
+    """How each claimed run trained, per task and stage: the steps, why it stopped (the evaluation's
+    ``training`` record: converged under the rule, or the step cap) and a link to its loss curve
+    where ``results/<task>/<run>/training/<stage>/loss.png`` holds it (relative to ``doc_dir``, the
+    report's folder). A baseline row counts only if its run converged: this is the evidence."""
+    body = []
+    for role in ROLES:
+        run = runs.get(role)
+        picked: dict[str, dict] = {}
+        for r in sorted(results, key=lambda r: r.get("_file", "")):
+            if r.get("_run_name") == run and r.get("training"):
+                picked.setdefault(r["task"], r)
+        for task in [t for t in tasks.names() if t in picked]:
+            r = picked[task]
+            for stage, rec in r["training"].items():
+                stop = rec.get("stop") or {}
+                why = stop.get("reason", "unfinished")
+                if stop.get("best_step") is not None:
+                    why += f" (best validation loss {stop['best_val_loss']:.3g} at step {stop['best_step']})"
+                curve = Path(r["_file"]).parent.parent / "training" / stage / "loss.png"
+                link = "–"
+                if curve.exists():
+                    target = os.path.relpath(curve, doc_dir) if doc_dir is not None else str(curve)
+                    link = f"[loss.png]({target})"
+                body.append(f"| {role} | `{run}` | {tasks.code_of(task)} | {stage} | {rec.get('steps', '?')} | "
+                            f"{why} | {link} |")
+    if not body:
+        return []
+    return ["How each run above trained (per task and stage: the last step, why it stopped, the loss curve "
+            "with the stop marked):", "",
+            "| role | run | task | stage | steps | stopped | loss curve |", "|---|---|---|---|---|---|---|"] + body + [""]
+
+
+def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu",
+          doc_dir: Path | None = None) -> list[str]:
     """The claims section of the report (markdown lines); READ refined as preset ``preset_name`` does
-    (as the main table)."""
+    (as the main table); then how each named run trained (:func:`training_lines`, links relative to
+    ``doc_dir``)."""
     unknown = sorted(set(runs) - set(ROLES))
     if unknown:
         raise ValueError(f"--claims: unknown role(s) {', '.join(unknown)}; roles are {', '.join(ROLES)}")
@@ -152,4 +189,4 @@ def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu") -
         w, l, p = row["pooled"]
         sa, sb = row["success"]
         out.append(f"| {row['claim']} | {cells} | {sa:.1f} / {sb:.1f} | +{w} / -{l}, p={p:.2g} | {row['verdict']} |")
-    return out + [""]
+    return out + [""] + training_lines(results, runs, doc_dir)

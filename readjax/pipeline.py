@@ -400,7 +400,7 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                     if source in trains:  # never two trainings of one autoencoder at once (jobs > 1)
                         trains[source].needs.append(shared[source])
             train = Step("train", task, f"train {label}", argv, made=marker.exists,
-                         after=lambda marker=marker: marker.write_text(json.dumps({"finished": time.time()})),
+                         after=lambda marker=marker, run=run: _trained(marker, run, results),
                          needs=list(prepare))  # nothing trains before its task's replay holds
             trains[label] = train
             if label in shared:
@@ -431,6 +431,12 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
         for u in s.users:  # what uses a step's output starts after it
             u.needs.append(s)
     return steps
+
+
+def _trained(marker: Path, run: Path, results: Path) -> None:
+    """After a training step: its marker, and its stages' records in results/."""
+    marker.write_text(json.dumps({"finished": time.time()}))
+    copy_training_records(run, results)
 
 
 def evaluate_step(cfg: PipelineConfig, task: str, run: Path, method: str, request: EvalRequest, python: str,
@@ -534,11 +540,28 @@ def check_media(media: Path, eval_dir: Path) -> None:
 
 
 def copy_results(run: Path, results: Path) -> None:
-    """Mirror a run's evaluation JSONs into results/<task>/<run>/eval/ (small, committed)."""
+    """Mirror a run's evaluation JSONs into results/<task>/<run>/eval/ (small, committed), and its
+    training records (:func:`copy_training_records`)."""
     for f in sorted((run / "eval").glob("*.json")):
         dest = results / run.parent.name / run.name / "eval" / f.name
         dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(f, dest)
+    copy_training_records(run, results)
+
+
+TRAINING_RECORDS = ("stop.json", "loss.png")  # why and when a stage stopped; its loss curve with the stop marked
+
+
+def copy_training_records(run: Path, results: Path) -> None:
+    """Mirror each finished stage's ``stop.json`` and loss curve into
+    results/<task>/<run>/training/<stage>/ (small, committed): a baseline row is claimed converged,
+    and its curve is the evidence, which must outlive the machine the checkpoints are on."""
+    for stop in sorted(run.glob("*/stop.json")):
+        dest = results / run.parent.name / run.name / "training" / stop.parent.name
+        dest.mkdir(parents=True, exist_ok=True)
+        for name in TRAINING_RECORDS:
+            if (stop.parent / name).exists():
+                shutil.copyfile(stop.parent / name, dest / name)
 
 
 def timing_records(results: str | Path) -> dict[str, dict[str, dict]]:

@@ -95,3 +95,27 @@ def test_cli_section_and_bad_roles(tmp_path, capsys):
     assert "unknown role" in capsys.readouterr().err
     assert _cli.run(report_cli.main, ["--runs", str(root), "--out", str(out), "--claims", "read"]) == 2
     assert "ROLE=RUN" in capsys.readouterr().err
+
+
+def test_training_records_of_the_claimed_runs(tmp_path):
+    """Each claimed run's stages: the last step, why it stopped and a link (relative to the report's
+    folder) to the loss curve the pipeline committed beside the evaluations; no link where none is."""
+    root = tmp_path / "results"
+    stop = {"stopped_at": 9500, "reason": "converged", "best_val_loss": 7.7e-4, "best_step": 8000}
+    det = {**_result("reach_target", "det_conv", "deterministic", [1, 0]),
+           "training": {"deterministic": {"steps": 9500, "stop": stop}}}
+    read = {**_result("push_button", "r5", "read", [1, 1]),
+            "training": {"vae": {"steps": 3000, "stop": {"reason": "step cap"}}, "read": {"steps": 10, "stop": None}}}
+    for r in (det, read):
+        r["_file"] = str(root / r["task"] / r["_run_name"] / "eval" / "x.json")
+    curve = root / "reach_target" / "det_conv" / "training" / "deterministic" / "loss.png"
+    curve.parent.mkdir(parents=True)
+    curve.write_bytes(b"png")
+    doc = tmp_path / "docs"
+    text = "\n".join(claims.training_lines([det, read], {"read": "r5", "deterministic": "det_conv"}, doc))
+    assert ("| deterministic | `det_conv` | RT | deterministic | 9500 | converged (best validation loss 0.00077 "
+            "at step 8000) | [loss.png](../results/reach_target/det_conv/training/deterministic/loss.png) |") in text
+    assert "| read | `r5` | PB | vae | 3000 | step cap | – |" in text
+    assert "| read | `r5` | PB | read | 10 | unfinished | – |" in text
+    assert text.index("| read |") < text.index("| deterministic |")  # in the roles' order
+    assert claims.training_lines([det], {"read": "r5"}, doc) == []  # no claimed run trained

@@ -65,6 +65,10 @@ class FakeRunner:
             if "vae" in methods.stages(arg("--model")):  # a finished autoencoder stage
                 (run / "vae").mkdir(exist_ok=True)
                 (run / "vae" / "stop.json").write_text("{}")
+            for stage in [arg("--stage")] if "--stage" in argv else methods.stages(arg("--model")):
+                (run / stage).mkdir(exist_ok=True)  # each stage's record of why it stopped, and its curve
+                (run / stage / "stop.json").write_text(json.dumps({"reason": "step cap", "stage": stage}))
+                (run / stage / "loss.png").write_bytes(b"png")
         elif mod == "evaluate":
             run = Path(arg("--run"))
             ev = Path(arg("--out")) if "--out" in argv else run / "eval"
@@ -112,6 +116,13 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert any("ETA" in ln for ln in lines[2:])
     assert (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N0.json").exists()
     assert (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").exists()
+    # each training's records (why it stopped, its loss curve) are committed beside its evaluations
+    for run, stages in (("read", ("vae", "read")), ("deterministic", ("deterministic",))):
+        training = tmp_path / "results" / "push_button" / run / "training"
+        assert sorted(f.name for f in training.iterdir()) == sorted(stages)
+        for stage in stages:
+            assert sorted(f.name for f in (training / stage).iterdir()) == ["loss.png", "stop.json"]
+            assert json.loads((training / stage / "stop.json").read_text())["stage"] == stage
     # the rendered episodes go to media/, apart from the evaluations a table reads
     media = tmp_path / "results" / "push_button" / "read" / "media"
     assert sorted(f.name for f in media.iterdir()) == ["spe_N100.json", "spe_N100_overlay.png", "spe_N100_rollouts.mp4"]
