@@ -73,7 +73,7 @@ def synthetic_motions(camera, n: int, rng):
     """n reachable straight-line reaches (B, 101, 10) in the camera's motion format."""
     import numpy as np
 
-    from readjax.data import motion as motion_lib
+    from readjax import motion as motion_lib
 
     t = np.linspace(0, 1, motion_lib.FRAMES)[None, :, None]
     pos = rng.uniform([0.3, -0.3, 0.1], [0.7, 0.3, 0.5], (n, 1, 3)) * t + (1 - t) * np.array([0.31, 0, 0.49])
@@ -86,7 +86,7 @@ def synthetic_dataset(camera, n: int, size: int, seed: int = 0):
     """A training split of n synthetic demos (random images, straight-line motions) at ``size`` px."""
     import numpy as np
 
-    from readjax.data import motion as motion_lib
+    from readjax import motion as motion_lib
     from readjax.data.store import Dataset
 
     rng = np.random.default_rng(seed)

@@ -24,7 +24,7 @@ import numpy as np
 
 from readjax import config, tasks
 from readjax import geometry as geo
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.methods import base
 from readjax.methods import read as read_lib
 from readjax.models.kinematic_vae import make_autoencoder

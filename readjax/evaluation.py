@@ -21,7 +21,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from readjax import failure_modes, provenance, tables, tasks, training, viz
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
 from readjax.sim.execute import execute_motions

@@ -250,7 +250,6 @@ def split_fingerprint(split_dir: Path, episodes: int) -> str | None:
     return _FINGERPRINTS[key]
 
 
-DATA_DERIVED = {"denoiser": ("motion_mean", "motion_std")}  # filled from the training set, not the recipe
 
 
 def label_configs(cfg: PipelineConfig, label: str) -> dict:
@@ -266,24 +265,6 @@ def recipe(cfg: PipelineConfig, label: str) -> dict:
     configs = label_configs(cfg, label)
     sections = [k for k in configs if k != "train"]
     return json.loads(json.dumps(config.configs_to_dict(configs, sections)))
-
-
-def recipe_differences(recorded: dict, wanted: dict) -> list[str]:
-    """The ``section.field`` names in which a result's recorded configs differ from ``wanted``, over
-    the sections the result records; fields a run predates count at their defaults, and
-    inference-only (``config.INFERENCE_ONLY``) and data-derived (``DATA_DERIVED``) fields are not the
-    recipe."""
-    from readjax.config import without_inference_only
-    recorded = without_inference_only(result_record.with_defaults(recorded))
-    wanted = without_inference_only(wanted)
-    out = []
-    for section, values in recorded.items():
-        if not isinstance(values, dict):
-            continue
-        skip = set(DATA_DERIVED.get(section, ()))
-        want = wanted.get(section, {})
-        out += [f"{section}.{k}" for k in sorted((set(values) | set(want)) - skip) if values.get(k) != want.get(k)]
-    return out
 
 
 def autoencoder_source(cfg: PipelineConfig, label: str) -> str | None:
@@ -320,7 +301,7 @@ def check_recipes(cfg: PipelineConfig) -> None:
                 except json.JSONDecodeError:
                     continue
                 wanted = wanted or recipe(cfg, label)
-                diff = recipe_differences(recorded, wanted)
+                diff = result_record.recipe_differences(recorded, wanted)
                 if diff:
                     raise PipelineError(
                         f"{f} was trained with another recipe than this grid's {label} (differs in "

@@ -20,7 +20,7 @@ import numpy as np
 
 from readjax import retrieval, tasks
 from readjax.config import DEFAULT_N
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.data import store
 from readjax.methods import load_model
 from readjax.methods.common import check_n_steps

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import failure_modes
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.diffusion.latent import codec
 from readjax.diffusion.refine import refine
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from readjax.config import DEFAULT_N, field_defaults
+from readjax.config import DEFAULT_N, field_defaults, without_inference_only
 from readjax.evaluation import EvalConfig
 
 PROTOCOLS = {  # protocol -> heading of its table
@@ -36,6 +36,26 @@ def with_defaults(configs: dict) -> dict:
         if isinstance(values, dict):
             values = {**field_defaults(section), **values}
         out[section] = values
+    return out
+
+
+DATA_DERIVED = {"denoiser": ("motion_mean", "motion_std")}  # filled from the training set, not the recipe
+
+
+def recipe_differences(recorded: dict, wanted: dict) -> list[str]:
+    """The ``section.field`` names in which a result's recorded configs differ from ``wanted``, over
+    the sections the result records; fields a run predates count at their defaults, and
+    inference-only (``config.INFERENCE_ONLY``) and data-derived (``DATA_DERIVED``) fields are not the
+    recipe."""
+    recorded = without_inference_only(with_defaults(recorded))
+    wanted = without_inference_only(wanted)
+    out = []
+    for section, values in recorded.items():
+        if not isinstance(values, dict):
+            continue
+        skip = set(DATA_DERIVED.get(section, ()))
+        want = wanted.get(section, {})
+        out += [f"{section}.{k}" for k in sorted((set(values) | set(want)) - skip) if values.get(k) != want.get(k)]
     return out
 
 

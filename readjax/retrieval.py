@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.models.denoiser import sample_features
 from readjax.sim.camera import CameraParams
 

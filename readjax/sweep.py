@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from readjax import _runtime, config, evaluation, methods, tasks
+from readjax import _runtime, config, evaluation, methods, result_record, tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.paired import discordant
@@ -166,14 +166,13 @@ def check_reference_run(run: Path, task: str, model: str, configs: dict) -> None
     config field the recipe holds equal (inference-only and data-derived ones aside), training
     finished. Its training set is checked when it is loaded (``Planner.load``)."""
     from readjax.methods.base import read_run
-    from readjax.pipeline import recipe_differences
 
     spec = read_run(run)
     if spec.get("task") != task or spec.get("method") != model:
         raise ValueError(f"--reference-run {run}: a {spec.get('method')} run on {spec.get('task')}, "
                          f"not {model} on {task}")
     wanted = json.loads(json.dumps(config.configs_to_dict(configs, list(spec["configs"]))))
-    differ = recipe_differences(spec["configs"], wanted)
+    differ = result_record.recipe_differences(spec["configs"], wanted)
     if differ:
         raise ValueError(f"--reference-run {run} was trained otherwise than this sweep's setting A: "
                          f"{', '.join(differ)} differ (same --preset and --set?)")

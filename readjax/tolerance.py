@@ -25,7 +25,7 @@ import numpy as np
 
 from readjax import geometry as geo
 from readjax.camera import CameraParams
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 
 _SHIFT, _TURN = 0, 1  # the episode generator's stream for each kind of error
 

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import ae_eval
-from readjax.data import motion as mo
+from readjax import motion as mo
 from readjax.sim import kinematics as kin
 
 from tests.models.helpers import chain_and_camera

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from readjax.config import DEFAULT_N
-from readjax.result_record import by_seed, is_default_eval, is_spe_eval, protocol
+from readjax.config import configs_to_dict, override, presets
+from readjax.result_record import by_seed, is_default_eval, is_spe_eval, protocol, recipe_differences
 
 
 def _read(N, update="cold_anchor", rounds=2, run_sde=("cold_anchor", 2), **cfg):
@@ -55,3 +56,17 @@ def test_the_default_evaluation_of_other_methods():
 def test_outcomes_pair_by_seed():
     assert by_seed({"seeds": [5, 3], "success": [1, 0]}) == {5: 1, 3: 0}
     assert by_seed({}) == {}
+
+
+def test_recipe_differences_name_the_trained_fields_only():
+    """A recorded recipe equals the wanted one up to what is not the recipe: inference-only fields
+    (refinement's update and rounds), data-derived ones (motion statistics) and fields the run
+    predates, counted at their defaults. A trained field that differs is named."""
+    configs = presets("cpu")
+    wanted = configs_to_dict(configs, ["denoiser", "sde"])
+    recorded = {"denoiser": {**wanted["denoiser"], "motion_mean": [1.0], "motion_std": [2.0]},
+                "sde": {k: v for k, v in wanted["sde"].items() if k != "self_feed"}}  # predates self_feed
+    recorded["sde"]["rounds"] = 7
+    assert recipe_differences(recorded, wanted) == []
+    other = configs_to_dict(override(configs, ["sde.lam=0.1", "denoiser.layers=3"]), ["denoiser", "sde"])
+    assert recipe_differences(other, wanted) == ["denoiser.layers", "sde.lam"]

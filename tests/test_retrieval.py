@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from readjax import retrieval, tasks
-from readjax.data import motion as mo
+from readjax import motion as mo
 from readjax.sim.camera import camera_from_model
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from readjax import geometry as geo
 from readjax import tasks, tolerance
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.sim.camera import camera_from_model
 
 

@@ -51,7 +51,7 @@ class VAEConfig:
 
     @property
     def loss_weights(self) -> dict[str, float]:
-        """Weights of the per-key task-space MSEs, keyed like ``readjax.data.motion.KEYS``."""
+        """Weights of the per-key task-space MSEs, keyed like ``readjax.motion.KEYS``."""
         return {"uv": self.w_uv, "z": self.w_z, "rot6d": self.w_rot6d, "grip": self.w_grip}
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, RotationSpline
 
-from readjax.data.motion import FRAMES
+from readjax.motion import FRAMES
 
 
 def resample_times(n_in: int, n_out: int = FRAMES) -> tuple[np.ndarray, np.ndarray]:

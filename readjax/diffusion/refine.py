@@ -46,7 +46,7 @@ import jax.numpy as jnp
 from readjax.config import SDEConfig
 from readjax.diffusion import irsde
 from readjax.diffusion.latent import LatentStats, codec
-from readjax.data.motion import check_motion_shape
+from readjax.motion import check_motion_shape
 
 DEFAULT_T_END = 1e-3
 

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import config, retrieval, stats_record, tasks
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.methods import base
 from readjax.models.denoiser import Denoiser
 from readjax.models.vae import motion_mse

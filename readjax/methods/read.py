@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from readjax import config, tasks, training
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.diffusion import irsde
 from readjax.diffusion import latent as latent_lib
 from readjax.diffusion.refine import refine

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 
 from readjax import tasks
 from readjax.config import SDEConfig
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.diffusion import irsde, taskspace
 from readjax.diffusion import latent as latent_lib
 from readjax.methods import base, common

@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 
 from readjax.config import SDEConfig
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.diffusion import irsde, taskspace
 from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb

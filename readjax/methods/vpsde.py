@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from readjax.config import VPSDEConfig
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.diffusion import vpsde as vp
 from readjax.methods import base, common
 from readjax.methods.augment import augment_rgb

@@ -31,8 +31,8 @@ import flax.linen as nn
 
 from readjax.camera import DEPTH_FAR, DEPTH_NEAR
 from readjax.config import DenoiserConfig
-from readjax.data import motion as motion_lib
-from readjax.data.motion import check_motion_shape
+from readjax import motion as motion_lib
+from readjax.motion import check_motion_shape
 from readjax.models.convnext_unet import HEAD_STRIDE, ConvNeXtUNet, bilinear_axis
 from readjax.models.vae import KEY_DIMS, MLP, EncoderLayer, embed_mlp, sinusoidal_positions
 

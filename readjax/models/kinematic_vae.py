@@ -34,7 +34,7 @@ from readjax import geometry as geo
 from readjax.arm import ArmChain
 from readjax.camera import CameraParams
 from readjax.config import VAEConfig
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.models.vae import (MLP, LatentDecoderBody, MotionEncoder, MotionVAE, _batch_motion,
                                 kl_divergence, weighted_motion_loss)
 
@@ -82,7 +82,7 @@ class KinematicConstants:
 def fk_motion(chain: ArmChain, camera: CameraParams, q: jax.Array, grip: jax.Array) -> jax.Array:
     """Joint trajectory (..., 7) and grip (..., 1) -> camera-frame motion (..., 10) via FK.
 
-    Equal to ``readjax.data.motion.encode(camera, *fk(chain, q), grip)`` wherever the end effector
+    Equal to ``readjax.motion.encode(camera, *fk(chain, q), grip)`` wherever the end effector
     is at least ``MIN_DEPTH`` in front of the camera; closer points are projected at that depth so
     that gradients stay finite for any q.
     """

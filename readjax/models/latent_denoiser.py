@@ -25,7 +25,7 @@ import flax.linen as nn
 import jax.numpy as jnp
 
 from readjax.config import DenoiserConfig
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.models.convnext_unet import ConvNeXtUNet
 from readjax.models.denoiser import time_features
 from readjax.models.vae import MLP, EncoderLayer, embed_mlp, sinusoidal_positions

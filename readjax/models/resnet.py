@@ -20,7 +20,7 @@ import flax.linen as nn
 import jax
 
 from readjax.config import ResNetConfig
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.models.convnext_unet import check_image
 from readjax.models.vae import KEY_DIMS
 

@@ -26,8 +26,8 @@ import flax.linen as nn
 import numpy as np
 
 from readjax.config import VAEConfig
-from readjax.data import motion as motion_lib
-from readjax.data.motion import check_motion_shape
+from readjax import motion as motion_lib
+from readjax.motion import check_motion_shape
 
 LN_EPS = 1e-5  # PyTorch's LayerNorm default, as in the original transformer layers
 
@@ -146,7 +146,7 @@ KEY_DIMS = {k: s.stop - s.start for k, s in motion_lib.KEYS.items()}
 
 
 def motion_mse(pred: jax.Array, target: jax.Array) -> dict[str, jax.Array]:
-    """Per-key mean squared errors between two motions (keys of ``readjax.data.motion.KEYS``)."""
+    """Per-key mean squared errors between two motions (keys of ``readjax.motion.KEYS``)."""
     return {k: jnp.mean((pred[..., s] - target[..., s]) ** 2) for k, s in motion_lib.KEYS.items()}
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from jax import lax
 
 from readjax import sharding
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.sim import ik
 from readjax.sim.camera import CameraParams
 from readjax.sim.controller import rollout_joints

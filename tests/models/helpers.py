@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax.config import DenoiserConfig, VAEConfig
-from readjax.data import motion as mo
+from readjax import motion as mo
 from readjax.sim import kinematics as kin
 
 TINY_VAE = VAEConfig(width=16, layers=1, heads=2, ffn=32, latent_dim=16)  # latent = width, as in the paper

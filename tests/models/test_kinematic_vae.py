@@ -8,7 +8,7 @@ import numpy as np
 import optax
 import pytest
 
-from readjax.data import motion as mo
+from readjax import motion as mo
 from readjax.models import KinematicAE, KinematicConstants, fk_motion, make_autoencoder
 from readjax.sim import kinematics as kin
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from readjax import tasks
-from readjax.data import motion as motion_lib
+from readjax import motion as motion_lib
 from readjax.sim import execute, ik
 from readjax.sim.kinematics import HOME_Q, fk
 

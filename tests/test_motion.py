@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from readjax import tasks
-from readjax.data import motion as mo
+from readjax import motion as mo
 from readjax.sim.camera import camera_from_model
 
 
