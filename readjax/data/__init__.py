@@ -1,1 +1,1 @@
-"""Demonstration data: the motion format, resampling, the dataset store, batched generation."""
+"""Demonstration data: resampling, the dataset store, batched generation (the motion format they hold is ``readjax.motion``)."""
