@@ -46,7 +46,8 @@ def parser() -> argparse.ArgumentParser:
                         "key varied alone from it (N at A's training only)")
     p.add_argument("--reference-run", default=None, metavar="RUN",
                    help="a finished run trained as setting A (same --preset, --set and data; checked): A's "
-                        "cell evaluates it instead of training again")
+                        "cell evaluates it instead of training again, and takes the run's own evaluations of "
+                        "the same episodes (the pipeline's, in RUN/eval/) where it has them")
     p.add_argument("--quiet", action="store_true")
     return p
 

@@ -121,8 +121,13 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         for n in ns:
             name = f"{CELL_PREFIX}N{n}"
             f = run_dir / "eval" / f"{name}.json"  # in the sweep's folder, also for a reference run's cell
+            reused = reusable_evaluation(trained, cfg.model, n, test_ds) if trained != run_dir else None
             if f.exists():
                 result = json.loads(f.read_text())
+            elif reused is not None:  # the reference run's own evaluation of these episodes (the pipeline's)
+                result = reused
+                f.parent.mkdir(parents=True, exist_ok=True)
+                f.write_text(json.dumps(result))
             else:
                 planner = planner or Planner.load(trained, data_root=cfg.data)
                 ecfg = evaluation.EvalConfig(episodes=cfg.episodes, N=n, batch_size=min(cfg.batch_size, cfg.episodes),
@@ -159,6 +164,22 @@ def cell_settings(grid: dict, reference: dict, vary: str = "all") -> list[dict]:
         return [dict(zip(keys, combo)) for combo in itertools.product(*[grid[k] for k in keys])] or [{}]
     a = {k: reference[k] for k in keys}
     return [a] + [{**a, k: v} for k in keys for v in grid[k] if v != reference[k]]
+
+
+def reusable_evaluation(run: Path, model: str, n: int, test_ds) -> dict | None:
+    """A finished evaluation in ``run``'s own eval/ that is exactly the cell this sweep would
+    evaluate: ``model`` at N = ``n`` from SPE's top-1 on clean images with the run's own refinement,
+    on ``test_ds``'s episodes (same count and content hash). The pipeline evaluates a reference run
+    at the N a sweep asks for, so setting A's cells need not run twice; the copy records its source."""
+    for f in sorted((run / "eval").glob("*.json")):
+        try:
+            r = json.loads(f.read_text())
+        except json.JSONDecodeError:
+            continue
+        if (result_record.is_eval(r, model, n) and r.get("episodes") == len(test_ds)
+                and r.get("test_fingerprint") == test_ds.fingerprint):
+            return {**r, "reused_from": str(f)}
+    return None
 
 
 def check_reference_run(run: Path, task: str, model: str, configs: dict) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 
 import jax
 import numpy as np
@@ -332,6 +333,24 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
     other = dataclasses.replace(cfg, sets=tuple(TINY) + ("sde.lam=0.3",), name="other")
     with pytest.raises(ValueError, match="sde.lam"):
         sweep_lib.run_sweep(other, progress=False)
+    # A's cells take the reference run's own evaluations of the same episodes (the pipeline's) instead
+    # of running them again: marked outcomes come back, and nothing is evaluated
+    ref = tmp_path / "ref"
+    shutil.copytree(trained, ref, ignore=shutil.ignore_patterns("eval"))
+    (ref / "eval").mkdir()
+    for n in (1, 100):
+        cell = json.loads((sweep_dir / "T2" / "eval" / f"sweep_N{n}.json").read_text())
+        (ref / "eval" / f"spe_N{n}.json").write_text(json.dumps({**cell, "name": f"spe_N{n}",
+                                                                  "success": [not x for x in cell["success"]]}))
+    monkeypatch.setattr(sweep_lib.evaluation, "evaluate", lambda *a, **k: pytest.fail("evaluated again"))
+    again = sweep_lib.run_sweep(dataclasses.replace(cfg, grid={"N": [1]}, reference_run=str(ref), name="again"),
+                                progress=False)
+    for c in again["cells"]:
+        cell = json.loads((sweep_dir / "T2" / "eval" / f"sweep_N{c['N']}.json").read_text())
+        assert c["outcomes"] == [int(not x) for x in cell["success"]]
+        reused = json.loads((tmp_path / "reach_target" / "again" / "default" / "eval" / f"sweep_N{c['N']}.json")
+                            .read_text())  # a grid of N alone: A's folder is "default"
+        assert reused["reused_from"] == str(ref / "eval" / f"spe_N{c['N']}.json")
 
 
 def test_ae_report_on_the_trained_run(run, tmp_path, capsys):

@@ -50,3 +50,25 @@ def test_table7_settings_vary_one_key_at_a_time():
         {"K": 50, "L": 0.1, "T": 2.0}, {"K": 50, "L": 0.5, "T": 0.1}]
     assert len(sweep.cell_settings(grid, ref, "all")) == 4
     assert sweep.cell_settings({"N": [1]}, ref, "one") == [{}]
+
+
+def test_a_reference_runs_evaluation_is_reused_only_for_the_same_cell(tmp_path):
+    """Another N, another refinement, another episode count or other episodes: evaluated anew."""
+    from readjax.sweep import reusable_evaluation
+
+    sde = {"update": "cold_anchor", "rounds": 2}
+    base = {"method": "read", "episodes": 3, "test_fingerprint": "abc", "configs": {"sde": sde},
+            "eval_config": {"N": 10, "retrieval": "spe", "rank": 1, "candidates": 1, "rounds": 2,
+                            "refine_update": "cold_anchor", "image_noise": 0.0, "brightness": 1.0}}
+    test_ds = type("DS", (), {"fingerprint": "abc", "__len__": lambda self: 3})()
+    (tmp_path / "eval").mkdir()
+    f = tmp_path / "eval" / "x.json"
+    f.write_text(json.dumps(base))
+    assert reusable_evaluation(tmp_path, "read", 10, test_ds)["reused_from"] == str(f)
+    assert reusable_evaluation(tmp_path, "read", 100, test_ds) is None
+    assert reusable_evaluation(tmp_path, "read_o", 10, test_ds) is None
+    for change in ({"episodes": 4}, {"test_fingerprint": "abd"},
+                   {"eval_config": {**base["eval_config"], "rounds": 1}},
+                   {"eval_config": {**base["eval_config"], "image_noise": 0.05}}):
+        f.write_text(json.dumps({**base, **change}))
+        assert reusable_evaluation(tmp_path, "read", 10, test_ds) is None, change
