@@ -1,7 +1,7 @@
 """Collect every evaluation under a runs folder into the paper's tables (methods x tasks,
-Avg12/Avg16 where present), a bar chart PNG, sweep tables, software versions and seeds.
+Avg12/Avg16 where present), a chart PNG (bars; a heat map beyond 8 rows), sweep tables, software versions and seeds.
 
-Evaluations are grouped by protocol: the main methods x tasks table (with its bar chart), oracle
+Evaluations are grouped by protocol: the main methods x tasks table (with its chart), oracle
 retrieval (cheat<i>_N<N>: Tables 4, 5, 8) and perturbed test images (Table 9).
 
 examples:

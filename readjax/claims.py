@@ -130,11 +130,12 @@ def evaluate_claims(results: list[dict], runs: dict[str, str], refinement: tuple
 
 
 def training_lines(results: list[dict], runs: dict[str, str], doc_dir: Path | None = None) -> list[str]:
-    """How each claimed run trained, per task and stage: the steps, why it stopped (the evaluation's
-    ``training`` record: converged under the rule, or the step cap) and a link to its loss curve
-    where ``results/<task>/<run>/training/<stage>/loss.png`` holds it (relative to ``doc_dir``, the
-    report's folder). A baseline row counts only if its run converged: this is the evidence."""
-    body = []
+    """How each claimed run trained: per role and stage, grouped by why the stage stopped (the
+    evaluations' ``training`` record: converged under the rule, or the step cap), each task's last
+    step, linked to its loss curve (stop marked) where ``results/<task>/<run>/training/<stage>/loss.png``
+    holds it (relative to ``doc_dir``, the report's folder). A baseline row counts only if its run
+    converged: this is the evidence."""
+    groups: dict[tuple[str, str, str], list[str]] = {}
     for role in ROLES:
         run = runs.get(role)
         picked: dict[str, dict] = {}
@@ -144,22 +145,19 @@ def training_lines(results: list[dict], runs: dict[str, str], doc_dir: Path | No
         for task in [t for t in tasks.names() if t in picked]:
             r = picked[task]
             for stage, rec in r["training"].items():
-                stop = rec.get("stop") or {}
-                why = stop.get("reason", "unfinished")
-                if stop.get("best_step") is not None:
-                    why += f" (best validation loss {stop['best_val_loss']:.3g} at step {stop['best_step']})"
+                why = (rec.get("stop") or {}).get("reason", "unfinished")
+                cell = f"{tasks.code_of(task)} {rec.get('steps', '?')}"
                 curve = Path(r["_file"]).parent.parent / "training" / stage / "loss.png"
-                link = "–"
                 if curve.exists():
-                    target = os.path.relpath(curve, doc_dir) if doc_dir is not None else str(curve)
-                    link = f"[loss.png]({target})"
-                body.append(f"| {role} | `{run}` | {tasks.code_of(task)} | {stage} | {rec.get('steps', '?')} | "
-                            f"{why} | {link} |")
-    if not body:
+                    cell = f"[{cell}]({os.path.relpath(curve, doc_dir) if doc_dir is not None else curve})"
+                groups.setdefault((role, stage, why), []).append(cell)
+    if not groups:
         return []
-    return ["How each run above trained (per task and stage: the last step, why it stopped, the loss curve "
-            "with the stop marked):", "",
-            "| role | run | task | stage | steps | stopped | loss curve |", "|---|---|---|---|---|---|---|"] + body + [""]
+    return (["How each run above trained (per stage, grouped by why it stopped: each task's last step, linked "
+             "to its loss curve with the stop marked where results/ holds it):", "",
+             "| role | run | stage | stopped | task: steps |", "|---|---|---|---|---|"]
+            + [f"| {role} | `{runs[role]}` | {stage} | {why} | {', '.join(cells)} |"
+               for (role, stage, why), cells in groups.items()] + [""])
 
 
 def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu",

@@ -19,7 +19,7 @@ from pathlib import Path
 from readjax import failure_modes, paper, tasks
 from readjax.config import preset
 from readjax.paired import discordant
-from readjax.report import bar_chart
+from readjax.report import success_chart
 from readjax.result_record import is_direct_eval, is_spe_eval
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
@@ -118,7 +118,7 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
                 "path (records: `results/<task>/verify/test_<fingerprint>.json`, matched by the split's content "
                 "hash).", ""]
     if chart is not None:
-        bar_chart({labels[k].replace("`", ""): v for k, v in table.items()}, chart)
+        success_chart({labels[k].replace("`", ""): v for k, v in table.items()}, chart)
         out += [f"![main table]({chart.name})", ""]
     out += ["Paired per task (exact McNemar on the same episodes: episodes only the first row solves / only "
             "the second, two-sided p):", "",

@@ -1,5 +1,5 @@
 """Assemble every evaluation under a runs folder into the paper's tables (methods x tasks with
-Avg12 / Avg16 where all member tasks are present), a bar chart, and the provenance."""
+Avg12 / Avg16 where all member tasks are present), a chart (bars, or a heat map for many rows), and the provenance."""
 
 from __future__ import annotations
 
@@ -91,7 +91,13 @@ def markdown_table(table: dict[str, dict[str, float]]) -> str:
     return "\n".join(lines)
 
 
-def bar_chart(table: dict[str, dict[str, float]], path: Path) -> None:
+BARS_UP_TO = 8  # rows a grouped bar chart stays readable with; more rows are drawn as a heat map
+
+
+def success_chart(table: dict[str, dict[str, float]], path: Path) -> None:
+    """The success table as a picture: grouped bars (a colour per row) for up to ``BARS_UP_TO`` rows,
+    beyond that a heat map (a line per row, the value written in each cell; blank where a row did
+    not run a task), whose height grows with the rows so every label stays legible."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -99,19 +105,32 @@ def bar_chart(table: dict[str, dict[str, float]], path: Path) -> None:
 
     cols = [c for c in list(tasks.AVG16) + ["Avg", "Avg12", "Avg16"] if any(c in r for r in table.values())]
     labels = list(table)
-    width = 0.8 / max(len(labels), 1)
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(cols) + 2), 3.8))
-    x = np.arange(len(cols))
-    colors = plt.get_cmap("tab10" if len(labels) <= 10 else "tab20")  # one distinct colour per row
-    for i, label in enumerate(labels):
-        ax.bar(x + i * width - 0.4 + width / 2, [table[label].get(c, 0.0) for c in cols], width, label=label,
-               color=colors(i % colors.N))
-    ax.set_xticks(x, cols)
-    ax.set_ylabel("success (%)")
-    ax.set_ylim(0, 105)
-    ax.legend(fontsize=7, ncol=2)
+    if len(labels) > BARS_UP_TO:
+        grid = np.array([[table[lb].get(c, np.nan) for c in cols] for lb in labels], dtype=float)
+        fig, ax = plt.subplots(figsize=(max(6.0, 0.55 * len(cols) + 0.09 * max(map(len, labels)) + 1.5),
+                                        0.22 * len(labels) + 1.2))
+        ax.imshow(np.ma.masked_invalid(grid), cmap="RdYlGn", vmin=0, vmax=100, aspect="auto")
+        for (i, j), v in np.ndenumerate(grid):
+            if np.isfinite(v):
+                ax.text(j, i, f"{v:.0f}", ha="center", va="center", fontsize=6)
+        ax.set_xticks(np.arange(len(cols)), cols, fontsize=7)
+        ax.xaxis.tick_top()
+        ax.set_yticks(np.arange(len(labels)), labels, fontsize=6)
+        ax.set_title("success (%)", fontsize=8, pad=14)
+    else:
+        width = 0.8 / max(len(labels), 1)
+        fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(cols) + 2), 3.8))
+        x = np.arange(len(cols))
+        colors = plt.get_cmap("tab10")  # one distinct colour per row
+        for i, label in enumerate(labels):
+            ax.bar(x + i * width - 0.4 + width / 2, [table[label].get(c, 0.0) for c in cols], width, label=label,
+                   color=colors(i % colors.N))
+        ax.set_xticks(x, cols)
+        ax.set_ylabel("success (%)")
+        ax.set_ylim(0, 105)
+        ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")  # long row labels stay whole
     plt.close(fig)
 
 
@@ -331,7 +350,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     by_protocol = {p: [r for r in listed if protocol(r) == p] for p in PROTOCOLS}
     chart = out.with_suffix(".png")
     if listed:
-        bar_chart(tables(by_protocol["main"] or listed), chart)
+        success_chart(tables(by_protocol["main"] or listed), chart)
     seeds = sorted({(r["task"], min(r["seeds"]), max(r["seeds"]), len(r["seeds"])) for r in results if r.get("seeds")})
     lines = [
         "# Results", "",

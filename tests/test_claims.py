@@ -113,9 +113,9 @@ def test_training_records_of_the_claimed_runs(tmp_path):
     curve.write_bytes(b"png")
     doc = tmp_path / "docs"
     text = "\n".join(claims.training_lines([det, read], {"read": "r5", "deterministic": "det_conv"}, doc))
-    assert ("| deterministic | `det_conv` | RT | deterministic | 9500 | converged (best validation loss 0.00077 "
-            "at step 8000) | [loss.png](../results/reach_target/det_conv/training/deterministic/loss.png) |") in text
-    assert "| read | `r5` | PB | vae | 3000 | step cap | – |" in text
-    assert "| read | `r5` | PB | read | 10 | unfinished | – |" in text
+    assert ("| deterministic | `det_conv` | deterministic | converged | "
+            "[RT 9500](../results/reach_target/det_conv/training/deterministic/loss.png) |") in text
+    assert "| read | `r5` | vae | step cap | PB 3000 |" in text
+    assert "| read | `r5` | read | unfinished | PB 10 |" in text
     assert text.index("| read |") < text.index("| deterministic |")  # in the roles' order
     assert claims.training_lines([det], {"read": "r5"}, doc) == []  # no claimed run trained

@@ -157,3 +157,21 @@ def test_where_refinement_started_table(tmp_path):
     assert "| read_a: spe_N10 | 1 / 2 | 1 / 1 | 0 / 1 |" in section
     assert "| read_b: spe_N10 | 1 / 4 | – | – |" in section
     assert "det" not in section
+
+
+def test_the_chart_stays_legible_with_many_rows(tmp_path):
+    """Up to BARS_UP_TO rows: grouped bars of fixed height; beyond: a heat map whose height grows
+    with the rows (every row label readable), also where a row ran only some tasks."""
+    import matplotlib.image as mpimg
+
+    from readjax.report import BARS_UP_TO, success_chart
+
+    def height(rows: int) -> int:
+        table = {f"run_{i}: spe_N100": ({"RT": 50.0 + i, "PB": 90.0} if i % 2 else {"RT": 10.0}) for i in range(rows)}
+        path = tmp_path / f"chart_{rows}.png"
+        success_chart(table, path)
+        return mpimg.imread(path).shape[0]
+
+    few, many, more = height(BARS_UP_TO), height(3 * BARS_UP_TO), height(6 * BARS_UP_TO)
+    assert few < many < more
+    assert more - many > 0.8 * (many - few)  # about linear in the rows
