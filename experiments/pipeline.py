@@ -21,7 +21,8 @@ same command again skips what is done. An evaluation counts as done when RESULTS
 split whose replay is on record (RESULTS/<task>/verify/), so a fresh machine with only the committed
 results/ regenerates, verifies and trains only what an unfinished evaluation needs. --shard i/n runs every n-th task from the i-th, so n
 processes (or machines sharing the folders) split the grid; --jobs J runs J steps at once in one process,
-each as soon as what it needs is finished (a GPU holds a dozen).
+each as soon as what it needs is finished (a GPU holds a dozen), its output in RUNS/pipeline_logs/, and every
+10 minutes a line saying what runs and how far it has got (a training: its stages' steps).
 
 A run name whose evaluations in RESULTS were trained with another recipe (preset, --set, --variant)
 is refused before any work: name the grid's runs apart with --run-name.

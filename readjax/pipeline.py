@@ -142,6 +142,8 @@ class Step:
     # the steps that must be finished before this one starts (``run_steps`` with jobs > 1; one job
     # runs the steps in their listed order, which respects these)
     needs: list["Step"] = field(default_factory=list)
+    # how far a running step has got, for the periodic "running:" lines (a training: its stages' steps)
+    progress: Callable[[], str] | None = None
 
     def needed(self) -> bool:
         """Whether this step is wanted and, unless it is a final step, a step that uses its output is
@@ -382,6 +384,7 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                         trains[source].needs.append(shared[source])
             train = Step("train", task, f"train {label}", argv, made=marker.exists,
                          after=lambda marker=marker, run=run: _trained(marker, run, results),
+                         progress=lambda run=run: training_progress(run),
                          needs=list(prepare))  # nothing trains before its task's replay holds
             trains[label] = train
             if label in shared:
@@ -412,6 +415,27 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
         for u in s.users:  # what uses a step's output starts after it
             u.needs.append(s)
     return steps
+
+
+def training_progress(run: Path) -> str:
+    """A training step's progress from its run folder, e.g. ``vae done, read 2250/5000``: each stage
+    finished, or its last logged step against its step cap (a stage under the convergence rule may
+    stop before the cap)."""
+    from readjax import training
+
+    parts = []
+    records = training.stage_records(run)
+    for stage, rec in sorted(records.items(), key=lambda kv: (kv[1]["stop"] is None, kv[0])):  # finished first
+        if rec["stop"] is not None:
+            parts.append(f"{stage} done")
+            continue
+        try:
+            train = json.loads((run / stage / "stage.json").read_text())["config"]["train"]
+            cap = train["vae_steps" if stage == "vae" else "steps"]
+        except (OSError, KeyError, ValueError):
+            cap = None
+        parts.append(f"{stage} {rec['steps']}/{cap}" if cap else f"{stage} {rec['steps']}")
+    return ", ".join(parts) or "starting"
 
 
 def _trained(marker: Path, run: Path, results: Path) -> None:
@@ -572,7 +596,7 @@ def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
 
 def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subprocess.run,
               prior: dict[str, dict[str, list[float]]] | None = None, jobs: int = 1, start=None,
-              log_dir: str | Path | None = None, poll: float = 1.0) -> dict:
+              log_dir: str | Path | None = None, poll: float = 1.0, heartbeat: float = 600.0) -> dict:
     """Run the steps not yet done; returns {"ran": k, "skipped": s, "seconds": {...}}. Progress and
     an ETA (:func:`_eta`; ``prior``: :func:`prior_costs`) go to ``log``.
 
@@ -581,7 +605,8 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
     a process with ``poll()``; default ``subprocess.Popen``), each started once every step it
     ``needs`` is finished, from the task with the fewest running steps first, in listed order otherwise:
     a GPU holds a dozen trainings, a CPU two. Each
-    step's output then goes to ``log_dir/<task>/<label>.log`` (None: this terminal, interleaved).
+    step's output then goes to ``log_dir/<task>/<label>.log`` (None: this terminal, interleaved), and
+    every ``heartbeat`` seconds a line says what is running, for how long and how far it has got.
     A failed step stops new starts; the running ones finish (and are kept) before the error."""
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
@@ -590,7 +615,7 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
     log(f"pipeline: {len(steps)} steps, {skipped} already done, {len(todo)} to run"
         + (f", up to {jobs} at once" if jobs > 1 else ""))
     if jobs > 1:
-        return _run_parallel(todo, skipped, jobs, log, start or _popen, prior, log_dir, poll)
+        return _run_parallel(todo, skipped, jobs, log, start or _popen, prior, log_dir, poll, heartbeat)
     by_kind: dict[str, list[float]] = {}  # seconds of finished steps, by kind and by label
     by_label: dict[str, list[float]] = {}
     t_start = time.time()
@@ -645,22 +670,24 @@ def _tail(path: Path | None, lines: int = 15) -> str:
     return "\n" + "\n".join("    " + ln for ln in text)
 
 
-def _run_parallel(todo: list[Step], skipped: int, jobs: int, log, start, prior, log_dir, poll: float) -> dict:
+def _run_parallel(todo: list[Step], skipped: int, jobs: int, log, start, prior, log_dir, poll: float,
+                  heartbeat: float = 600.0) -> dict:
     """``run_steps`` with up to ``jobs`` steps at once (see there)."""
     pending = list(todo)
     running: dict[int, tuple[Step, object, float, float | None, Path | None]] = {}  # id(step) -> ...
     try:
-        return _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running)
+        return _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running, heartbeat)
     finally:  # an error or a kill of this process: stop the steps it started (each resumes when re-run)
         for _, proc, *_ in running.values():
             if proc.poll() is None:
                 proc.terminate()
 
 
-def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running) -> dict:
+def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running, heartbeat=600.0) -> dict:
     by_kind: dict[str, list[float]] = {}
     by_label: dict[str, list[float]] = {}
     t_start, ran, failures, started = time.time(), 0, [], 0
+    last_beat = time.time()
 
     def ready(step: Step) -> bool:
         waiting = {id(s) for s in pending} | set(running)
@@ -700,6 +727,9 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
             break
         finished = [(k, v) for k, v in running.items() if v[1].poll() is not None]
         if not finished:
+            if time.time() - last_beat >= heartbeat:
+                last_beat = time.time()
+                log(running_line(running.values(), pending, by_label, by_kind, prior, jobs, t_start))
             time.sleep(poll)
             continue
         for k, (step, proc, t0, load, path) in finished:
@@ -718,6 +748,24 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
     if failures:
         raise PipelineError("; ".join(failures) + "\nfix it and re-run: finished steps are skipped")
     return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
+
+
+def running_line(running, pending, by_label, by_kind, prior, jobs: int, t_start: float) -> str:
+    """The periodic line of a parallel grid: each running step, how long it has run and how far it has
+    got (its ``progress``), and the ETA of the grid."""
+    now = time.time()
+    parts = []
+    for step, _, t0, *_ in running:
+        how_far = ""
+        if step.progress is not None:
+            try:
+                how_far = f", {step.progress()}"
+            except (OSError, ValueError, KeyError):  # a record half-written: the next line will have it
+                pass
+        parts.append(f"{step.task}: {step.label} ({_hms(now - t0)}{how_far})")
+    eta = _eta(list(pending) + [s for s, *_ in running], by_label, by_kind, prior)
+    return (f"running  {'; '.join(parts)}  (elapsed {_hms(now - t_start)}, {len(pending)} waiting"
+            f"{', ETA ' + _hms(eta / jobs) if eta is not None else ''})")
 
 
 def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[str, list[float]],

@@ -569,3 +569,35 @@ def test_an_interrupted_parallel_grid_stops_its_running_steps(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, jobs=2, start=start, poll=0)
     assert started[0].returncode == -15
+
+
+def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
+    """Every ``heartbeat`` seconds a line names each running step, its time so far and its progress
+    (a training: its stages' last step against their caps, read from the run folder)."""
+    run = tmp_path / "runs" / "reach_target" / "read"
+    (run / "vae").mkdir(parents=True)
+    (run / "read").mkdir()
+    stage = lambda vae, steps: json.dumps({"config": {"train": {"vae_steps": vae, "steps": steps}}})  # noqa: E731
+    (run / "vae" / "stage.json").write_text(stage(3000, 5000))
+    (run / "vae" / "metrics.jsonl").write_text('{"step": 3000}\n')
+    (run / "vae" / "stop.json").write_text('{"reason": "step cap"}')
+    (run / "read" / "stage.json").write_text(stage(3000, 5000))
+    assert pipeline.training_progress(run) == "vae done, read 0/5000"
+    (run / "read" / "metrics.jsonl").write_text('{"step": 25}\n{"step": 2250}\n')
+    assert pipeline.training_progress(run) == "vae done, read 2250/5000"
+    assert pipeline.training_progress(tmp_path / "nothing yet") == "starting"
+
+    done: set = set()
+    steps = [pipeline.Step("train", "reach_target", "train read", ["x"], made=lambda: "x" in done,
+                           progress=lambda: pipeline.training_progress(run)),
+             pipeline.Step("evaluate", "push_button", "evaluate read --N 100", ["y"], made=lambda: "y" in done)]
+    start = lambda argv, path: _FakeProc(0, 3, lambda: done.add(argv[0]))  # noqa: E731
+    lines = []
+    pipeline.run_steps(steps, log=lines.append, jobs=2, start=start, poll=0, heartbeat=0)
+    beats = [ln for ln in lines if ln.startswith("running")]
+    assert beats and "reach_target: train read (0:00:00, vae done, read 2250/5000)" in beats[0]
+    assert "push_button: evaluate read --N 100 (0:00:00)" in beats[0] and "0 waiting" in beats[0]
+    done.clear()
+    quiet = []
+    pipeline.run_steps(steps, log=quiet.append, jobs=2, start=start, poll=0)
+    assert not any(ln.startswith("running") for ln in quiet)  # the default: every 10 minutes
