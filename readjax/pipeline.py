@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import resource
 import shutil
 import subprocess
 import sys
@@ -461,19 +462,23 @@ def evaluate_step(cfg: PipelineConfig, task: str, run: Path, method: str, reques
 TIMING_FILE = "pipeline_timing.json"
 
 
-def record_timing(step: Step, seconds: float, load: float | None) -> None:
+def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: float | None = None) -> None:
     """Add a finished step's wall clock to its task's ``pipeline_timing.json`` (committed beside the
     results, read by ``experiments.report``): seconds, when, and the machine's core count and load
     average when it started (2-core timings beside another job are not idle-machine timings).
     A step that ran before under the same label (the same task regenerated on another machine, a
     replicate grid) keeps its first record, which the cost table reads: the cost of producing the
-    task's results once; later runs are appended under ``repeats``, never overwriting it."""
+    task's results once; later runs are appended under ``repeats``, never overwriting it.
+    ``cpu_seconds``: the CPU time (user + system) of the step's process, which neither another job
+    beside it nor a pause (a stopped process) inflates as they do the wall clock."""
     if step.timing is None:
         return
     f = step.timing
     record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
              "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
+    if cpu_seconds:
+        entry["cpu_seconds"] = round(cpu_seconds, 1)
     if step.label in record["steps"]:
         record.setdefault("repeats", {}).setdefault(step.label, []).append(entry)
     else:
@@ -629,16 +634,24 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
         eta = _eta(todo[k - 1:], by_label, by_kind, prior)
         log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
             f"{', ETA ' + _hms(eta) if eta is not None else ''})")
-        t0, load = time.time(), _load()
+        t0, load, cpu0 = time.time(), _load(), _children_cpu()
         proc = runner(step.argv)
         if proc.returncode != 0:
             raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
                                 f"re-run: finished steps are skipped")
-        _finish(step, t0, load, by_kind, by_label)
+        _finish(step, t0, load, by_kind, by_label, _children_cpu() - cpu0)
     return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
 
 
-def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: dict) -> None:
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of this process's children that have exited and been waited for:
+    its difference across one child's reaping is that child's CPU time."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: dict,
+            cpu_seconds: float | None = None) -> None:
     """A step's command exited 0: publish its output (``after``), check it is there, record its time."""
     step.after()
     if not step.made():
@@ -647,7 +660,7 @@ def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: 
     seconds = time.time() - t0
     by_kind.setdefault(step.kind, []).append(seconds)
     by_label.setdefault(step.label, []).append(seconds)
-    record_timing(step, seconds, load)
+    record_timing(step, seconds, load, cpu_seconds)
 
 
 def _popen(argv: list[str], log_path: Path | None):
@@ -725,7 +738,12 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
                                     + ", ".join(f"`{n.label}` ({n.status()})" for n in stuck.needs if not n.done()))
         elif not running:
             break
-        finished = [(k, v) for k, v in running.items() if v[1].poll() is not None]
+        finished, cpu = [], {}
+        for k, v in running.items():
+            cpu0 = _children_cpu()
+            if v[1].poll() is not None:  # reaped by this poll: the rusage difference is its CPU time
+                finished.append((k, v))
+                cpu[k] = _children_cpu() - cpu0
         if not finished:
             if time.time() - last_beat >= heartbeat:
                 last_beat = time.time()
@@ -740,7 +758,7 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
                     f"{len(running)} running step(s), starting no more")
                 continue
             try:
-                _finish(step, t0, load, by_kind, by_label)
+                _finish(step, t0, load, by_kind, by_label, cpu[k])
             except PipelineError as e:
                 failures.append(str(e))
                 continue

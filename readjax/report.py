@@ -171,9 +171,11 @@ def cost_lines(runs_root: str | Path) -> list[str]:
     lines = ["## Pipeline wall clock per task", "",
              "Minutes per step as `experiments.pipeline` ran it (generate: test and training splits; "
              "evaluate: every evaluation of every method). Load: the 1-minute load average when the "
-             "task's steps started, min-max.", "",
-             "| task | " + " | ".join(cols) + " | total | cores | load |", "|---" * (len(cols) + 4) + "|"]
-    totals = dict.fromkeys(cols + ["total"], 0.0)
+             "task's steps started, min-max. CPU: the steps' CPU minutes (user + system; recorded since "
+             "2026-12-04, with the share of steps that have it), which a job beside them or a pause does "
+             "not inflate as it does the wall clock.", "",
+             "| task | " + " | ".join(cols) + " | total | CPU | cores | load |", "|---" * (len(cols) + 5) + "|"]
+    totals = dict.fromkeys(cols + ["total", "cpu"], 0.0)
     for task in sorted(records, key=lambda t: order_of.get(t, len(order_of))):
         steps = records[task]
         mins = dict.fromkeys(cols, 0.0)
@@ -186,10 +188,13 @@ def cost_lines(runs_root: str | Path) -> list[str]:
         loads = [st["load_at_start"] for st in steps.values() if st.get("load_at_start") is not None]
         cores = sorted({str(st.get("cpus")) for st in steps.values()})
         load = f"{min(loads):.1f}-{max(loads):.1f}" if loads else "–"
+        cpu = [st["cpu_seconds"] / 60 for st in steps.values() if st.get("cpu_seconds")]
+        totals["cpu"] += sum(cpu)
+        cpu_cell = "–" if not cpu else f"{sum(cpu):.1f}" + ("" if len(cpu) == len(steps) else f" ({len(cpu)}/{len(steps)})")
         lines.append(f"| {tasks.code_of(task)} | " + " | ".join(f"{mins[c]:.1f}" for c in cols)
-                     + f" | {total:.1f} | {','.join(cores)} | {load} |")
+                     + f" | {total:.1f} | {cpu_cell} | {','.join(cores)} | {load} |")
     lines.append(f"| all {len(records)} | " + " | ".join(f"{totals[c]:.1f}" for c in cols)
-                 + f" | {totals['total']:.1f} | | |")
+                 + f" | {totals['total']:.1f} | {totals['cpu']:.1f} | | |")
     return lines + [""]
 
 

@@ -140,7 +140,9 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
                 ["seconds"] for t in ("push_button", "reach_target")]
     assert prior["label"]["train read"] == recorded and len(prior["kind"]["verify"]) == 2
     costs = report.cost_lines(tmp_path / "results")
-    assert "| task | generate | verify | train deterministic | train read | evaluate | media | total | cores | load |" in costs
+    assert ("| task | generate | verify | train deterministic | train read | evaluate | media | total | CPU | cores "
+            "| load |") in costs
+    assert all(" | – | " in ln for ln in costs if ln.startswith(("| RT", "| PB")))  # fakes: no CPU time recorded
     assert [ln.split(" |")[0] for ln in costs if ln.startswith("| ") and not ln.startswith("| task")] == [
         "| RT", "| PB", "| all 2"]
     # a step run again (a replicate, a regenerated split) keeps the first record and adds a repeat
@@ -601,3 +603,25 @@ def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
     quiet = []
     pipeline.run_steps(steps, log=quiet.append, jobs=2, start=start, poll=0)
     assert not any(ln.startswith("running") for ln in quiet)  # the default: every 10 minutes
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_steps_cpu_time_is_recorded_beside_its_wall_clock(tmp_path, jobs):
+    """The timing record holds the step process's CPU time: a step that computes records about its
+    work, one that waits records far less than its wall clock (a pause or a job beside it inflates
+    the wall clock, not the CPU time)."""
+    import sys
+
+    timing = tmp_path / "results" / "reach_target" / pipeline.TIMING_FILE
+    busy = "import time\nt = time.process_time()\nwhile time.process_time() - t < 0.6: pass"
+    steps = [pipeline.Step("train", "reach_target", name, [sys.executable, "-c", code + f"\nopen(r'{tmp_path / name}', 'w')"],
+                           made=(tmp_path / name).exists, timing=timing)
+             for name, code in (("busy", busy), ("idle", "import time; time.sleep(1.5)"))]
+    pipeline.run_steps(steps, log=lambda m: None, jobs=jobs, log_dir=tmp_path / "logs", poll=0.05)
+    rec = json.loads(timing.read_text())["steps"]
+    assert rec["busy"]["cpu_seconds"] >= 0.5
+    assert rec["idle"].get("cpu_seconds", 0.0) < 0.5 * rec["idle"]["seconds"]
+    row = next(ln for ln in report.cost_lines(tmp_path / "results") if ln.startswith("| RT"))
+    cpu = rec["busy"]["cpu_seconds"] + rec["idle"].get("cpu_seconds", 0.0)
+    share = "" if "cpu_seconds" in rec["idle"] else " (1/2)"
+    assert f" | {cpu / 60:.1f}{share} | " in row
