@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from experiments import _cli
 from readjax.config import preset_names
@@ -63,9 +64,10 @@ def main(argv=None) -> None:
         read_run, det_run = args.main
         sections.append(lambda results, chart: main_table.lines(results, read_run, det_run, chart,
                                                                 preset_name=args.main_preset))
+    claims_plot = Path(args.out).with_name(Path(args.out).stem + "_claims.png")
     if args.claims is not None:
         sections.append(lambda results, chart: claims.lines(results, roles, preset_name=args.main_preset,
-                                                            doc_dir=chart.parent))
+                                                            doc_dir=chart.parent, plot=claims_plot))
 
     def main_section(results, chart):  # the sections shown first: the main table, then the claims
         return [line for section in sections for line in section(results, chart)]

@@ -160,11 +160,49 @@ def training_lines(results: list[dict], runs: dict[str, str], doc_dir: Path | No
                for (role, stage, why), cells in groups.items()] + [""])
 
 
+VERDICT_COLOURS = {"holds": "tab:green", "reversed": "tab:red", "does not hold": "tab:red"}  # else grey
+
+
+def plot_claims(rows: list[dict], path: Path) -> bool:
+    """The measured claims as a picture, a line each: pooled success of the claim's second side (open
+    circle) and first side (filled), joined, coloured by the verdict (green holds, red reversed or
+    does not hold, grey not shown), with the discordant counts and p. False (nothing drawn) when no
+    claim was measured."""
+    measured = [r for r in rows if r["pooled"] is not None]
+    if not measured:
+        return False
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8.5, 0.45 * len(measured) + 1.0))
+    for i, row in enumerate(measured):
+        y = len(measured) - 1 - i
+        a, b = row["success"]
+        w, l, p = row["pooled"]
+        colour = next((c for k, c in VERDICT_COLOURS.items() if row["verdict"].startswith(k)), "tab:gray")
+        ax.plot([b, a], [y, y], color=colour, lw=2)
+        ax.plot([b], [y], "o", mfc="white", mec=colour, ms=7)
+        ax.plot([a], [y], "o", color=colour, ms=7)
+        ax.text(103, y, f"+{w} / -{l}, p = {p:.2g}", va="center", fontsize=7)
+    ax.set_yticks(range(len(measured)), [r["claim"] for r in reversed(measured)], fontsize=7)
+    ax.set_xlim(-2, 135)
+    ax.set_ylim(-0.6, len(measured) - 0.4)
+    ax.set_xticks(range(0, 101, 20))
+    ax.set_xlabel("pooled success % (open: second side, filled: first side)")
+    ax.grid(axis="x", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return True
+
+
 def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu",
-          doc_dir: Path | None = None) -> list[str]:
+          doc_dir: Path | None = None, plot: Path | None = None) -> list[str]:
     """The claims section of the report (markdown lines); READ refined as preset ``preset_name`` does
-    (as the main table); then how each named run trained (:func:`training_lines`, links relative to
-    ``doc_dir``)."""
+    (as the main table); with ``plot``, the picture of :func:`plot_claims` there (beside the report);
+    then how each named run trained (:func:`training_lines`, links relative to ``doc_dir``)."""
     unknown = sorted(set(runs) - set(ROLES))
     if unknown:
         raise ValueError(f"--claims: unknown role(s) {', '.join(unknown)}; roles are {', '.join(ROLES)}")
@@ -187,4 +225,7 @@ def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu",
         w, l, p = row["pooled"]
         sa, sb = row["success"]
         out.append(f"| {row['claim']} | {cells} | {sa:.1f} / {sb:.1f} | +{w} / -{l}, p={p:.2g} | {row['verdict']} |")
-    return out + [""] + training_lines(results, runs, doc_dir)
+    out.append("")
+    if plot is not None and plot_claims(rows, plot):
+        out += [f"![the claims, pooled]({plot.name})", ""]
+    return out + training_lines(results, runs, doc_dir)

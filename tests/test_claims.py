@@ -91,6 +91,10 @@ def test_cli_section_and_bad_roles(tmp_path, capsys):
     text = out.read_text()
     assert "## The paper's claims, tested" in text and "read = `r5`" in text
     assert "| refinement >> retrieval (READ N = 100 vs N = 0) | RT +10/-0 (p=0.002)" in text
+    # the measured claims drawn beside the report; none measured: no picture
+    assert (tmp_path / "report_claims.png").stat().st_size > 0 and "![the claims, pooled](report_claims.png)" in text
+    assert not claims.plot_claims(claims.evaluate_claims([], {"read": "r5"}), tmp_path / "none.png")
+    assert not (tmp_path / "none.png").exists()
     assert _cli.run(report_cli.main, ["--runs", str(root), "--out", str(out), "--claims", "reader=r5"]) == 2
     assert "unknown role" in capsys.readouterr().err
     assert _cli.run(report_cli.main, ["--runs", str(root), "--out", str(out), "--claims", "read"]) == 2
