@@ -108,7 +108,7 @@ def _interrupt(signum, frame):
 
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
-    from readjax import pipeline, tasks
+    from readjax import pipeline, scheduler, tasks
 
     try:
         shard = tuple(int(x) for x in args.shard.split("/"))
@@ -134,7 +134,7 @@ def main(argv=None) -> int:
         protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness).validate()
     try:
         steps = pipeline.plan_steps(cfg)
-    except pipeline.PipelineError as e:
+    except scheduler.PipelineError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     if args.dry_run:
@@ -148,10 +148,10 @@ def main(argv=None) -> int:
             os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
         # `kill` as Ctrl-C: the running steps are stopped with the grid, not left running unwatched
         signal.signal(signal.SIGTERM, _interrupt)
-        summary = pipeline.run_steps(steps, log=lambda m: print(m, flush=True),
-                                     prior=pipeline.prior_costs(cfg.results), jobs=args.jobs,
-                                     log_dir=Path(cfg.runs) / "pipeline_logs" if args.jobs > 1 else None)
-    except pipeline.PipelineError as e:
+        summary = scheduler.run_steps(steps, log=lambda m: print(m, flush=True),
+                                      prior=scheduler.prior_costs(cfg.results), jobs=args.jobs,
+                                      log_dir=Path(cfg.runs) / "pipeline_logs" if args.jobs > 1 else None)
+    except scheduler.PipelineError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     print(f"pipeline: ran {summary['ran']} steps, skipped {summary['skipped']}; seconds by kind "

@@ -13,7 +13,7 @@ import numpy as np
 
 from readjax import failure_modes, tasks, verification
 from readjax.paired import mcnemar_p, paired_outcomes
-from readjax.pipeline import timing_records
+from readjax.scheduler import timing_records
 from readjax.result_record import PROTOCOLS, eval_config_of, protocol, with_defaults
 from readjax.tables import success_table
 from readjax.sweep import CELL_PREFIX, format_table7

@@ -11,7 +11,7 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import config, methods, pipeline, report, verification
+from readjax import config, methods, pipeline, report, scheduler, verification
 
 
 def _cfg(tmp_path, **kw):
@@ -108,7 +108,7 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
                      ("reach_target", "train"), ("reach_target", "evaluate"), ("reach_target", "evaluate"),
                      ("reach_target", "media")]
     runner, lines = FakeRunner(), []
-    out = pipeline.run_steps(steps, log=lines.append, runner=runner)
+    out = scheduler.run_steps(steps, log=lines.append, runner=runner)
     assert len(steps) == 2 * (3 + 1 + 2 + 1 + 2 + 1 + 1)
     # READ scores 100 % at N = 100: its oracle-start evaluations (for a task below 80 %) are skipped
     assert out["ran"] == len(steps) - 4 and out["skipped"] == 4
@@ -135,7 +135,7 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert timing["task"] == "reach_target" and len(timing["steps"]) == len(steps) // 2 - 2
     assert {st["kind"] for st in timing["steps"].values()} == {"generate", "verify", "train", "evaluate", "media"}
     assert all(st["seconds"] >= 0 and st["cpus"] >= 1 for st in timing["steps"].values())
-    prior = pipeline.prior_costs(tmp_path / "results")  # both tasks' records, for a later run's ETA
+    prior = scheduler.prior_costs(tmp_path / "results")  # both tasks' records, for a later run's ETA
     recorded = [json.loads((tmp_path / "results" / t / "pipeline_timing.json").read_text())["steps"]["train read"]
                 ["seconds"] for t in ("push_button", "reach_target")]
     assert prior["label"]["train read"] == recorded and len(prior["kind"]["verify"]) == 2
@@ -148,14 +148,14 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     # a step run again (a replicate, a regenerated split) keeps the first record and adds a repeat
     gen = next(s for s in steps if s.task == "reach_target" and s.kind == "generate")
     first = timing["steps"][gen.label]
-    pipeline.record_timing(gen, 297.3, 4.3)
-    pipeline.record_timing(gen, 12.0, None)
+    scheduler.record_timing(gen, 297.3, 4.3)
+    scheduler.record_timing(gen, 12.0, None)
     timing = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
     assert timing["steps"][gen.label] == first
     assert [r["seconds"] for r in timing["repeats"][gen.label]] == [297.3, 12.0]
     assert report.cost_lines(tmp_path / "results") == costs
     again = FakeRunner()
-    assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
+    assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
     assert again.calls == []
     # each version of a split keeps its replay record, named by its content hash
     assert (tmp_path / "results" / "push_button" / "verify" / "test_a-test.json").exists()
@@ -167,11 +167,11 @@ def test_a_fresh_machine_needs_only_the_results(tmp_path):
     import shutil
 
     cfg = _cfg(tmp_path)
-    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
     shutil.rmtree(tmp_path / "data")
     shutil.rmtree(tmp_path / "runs")
     fresh = FakeRunner(machine="b")
-    assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=fresh)["ran"] == 0
+    assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=fresh)["ran"] == 0
     (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").unlink()
     steps = pipeline.plan_steps(cfg)
     assert [(s.task, s.label) for s in steps if not s.done()] == [
@@ -180,7 +180,7 @@ def test_a_fresh_machine_needs_only_the_results(tmp_path):
         ("push_button", "evaluate deterministic")]
     assert [s.status() for s in steps if s.task == "push_button"] == [
         "todo", "todo", "todo", "skip", "done", "done", "done", "skip", "skip", "todo", "todo"]  # train read: not needed
-    pipeline.run_steps(steps, log=lambda m: None, runner=fresh)
+    scheduler.run_steps(steps, log=lambda m: None, runner=fresh)
     assert [m for m, _ in fresh.calls] == ["generate", "verify", "generate", "train", "evaluate"]
     # machine b's split has its own replay record beside machine a's
     assert sorted(f.name for f in (tmp_path / "results" / "push_button" / "verify").iterdir()) == [
@@ -191,7 +191,7 @@ def test_an_evaluation_counts_only_on_a_verified_split(tmp_path):
     """An evaluation in results/ whose test split has no 100 % replay on record is not done: the
     grid verifies the split here and evaluates again."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("deterministic",))
-    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
     record = tmp_path / "results" / "reach_target" / "verify" / "test_a-test.json"
     record.unlink()
     assert [s.label for s in pipeline.plan_steps(cfg) if not s.done()] == [
@@ -207,7 +207,7 @@ def test_run_names_keep_a_recipe_apart(tmp_path):
     steps = pipeline.plan_steps(cfg)
     train = [s for s in steps if s.kind == "train"]
     assert [s.argv[s.argv.index("--name") + 1] for s in train] == ["read_v3_5k", "deterministic"]
-    pipeline.run_steps(steps, log=lambda m: None, runner=FakeRunner())
+    scheduler.run_steps(steps, log=lambda m: None, runner=FakeRunner())
     assert (tmp_path / "results" / "reach_target" / "read_v3_5k" / "eval" / "spe_N100.json").exists()
     assert (tmp_path / "runs" / "reach_target" / "read_v3_5k" / "pipeline_trained.json").exists()
     with pytest.raises(ValueError, match="not among --methods"):
@@ -218,16 +218,16 @@ def test_run_names_keep_a_recipe_apart(tmp_path):
 
 def test_a_failed_replay_stops_before_training(tmp_path):
     runner = FakeRunner(verify_rate=0.97)
-    with pytest.raises(pipeline.PipelineError, match="100 %"):
-        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, runner=runner)
+    with pytest.raises(scheduler.PipelineError, match="100 %"):
+        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, runner=runner)
     assert [c[0] for c in runner.calls] == ["generate", "verify"]
 
 
 def test_rendered_episodes_must_match_the_evaluation(tmp_path):
     """A video whose outcomes differ from the table's on the same seeds stops the grid."""
-    with pytest.raises(pipeline.PipelineError, match="depends on its batch"):
-        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))), log=lambda m: None,
-                           runner=FakeRunner(media_outcome=0))
+    with pytest.raises(scheduler.PipelineError, match="depends on its batch"):
+        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))), log=lambda m: None,
+                            runner=FakeRunner(media_outcome=0))
     steps = pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",), media_episodes=0))
     assert "media" not in {s.kind for s in steps}
     with pytest.raises(ValueError, match="--media-episodes"):
@@ -239,7 +239,7 @@ def test_a_weak_task_is_evaluated_from_the_oracles_start(tmp_path):
     at each N too (retrieval or refinement: which limits the task); at or above, it does not."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",))
     runner = FakeRunner(read_top=0, media_outcome=0)
-    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=runner)
+    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=runner)
     oracle = [a for m, a in runner.calls if m == "evaluate" and "cheat" in a]
     assert [a[a.index("--N") + 1] for a in oracle] == ["0", "100"] and all(a[a.index("--rank") + 1] == "1" for a in oracle)
     ev = tmp_path / "results" / "reach_target" / "read" / "eval"
@@ -262,7 +262,7 @@ def test_variants_train_with_their_own_overrides_in_their_own_runs(tmp_path):
     assert [Path(s.argv[s.argv.index("--run") + 1]).name for s in steps if s.kind == "media"] == ["read"]
     assert [s.label for s in steps if s.kind in ("train", "evaluate") and "read_" in s.label] == [
         "train read_o_em", "evaluate read_o_em", "train read_kin", "evaluate read_kin --N 0", "evaluate read_kin --N 100"]
-    pipeline.run_steps(steps, log=lambda m: None, runner=runner)
+    scheduler.run_steps(steps, log=lambda m: None, runner=runner)
     trained = {a[a.index("--name") + 1]: a[a.index("--model") + 1] for m, a in runner.calls if m == "train"}
     assert trained == {"read": "read", "read_o_em": "read_o", "read_kin": "read"}
     assert runner.sets == {"read": ["train.steps=7"], "read_o_em": ["train.steps=7", "read_o.sampler=em"],
@@ -304,7 +304,7 @@ def test_a_variant_with_reads_autoencoder_starts_from_it(tmp_path):
     assert [s.label for s in steps if s.kind == "train"].index(shared.label) < \
         [s.label for s in steps if s.kind == "train"].index("train read_sf")
     runner = FakeRunner(read_top=0, media_outcome=0)
-    pipeline.run_steps(steps, log=lambda m: None, runner=runner)
+    scheduler.run_steps(steps, log=lambda m: None, runner=runner)
     stages = [a[a.index("--stage") + 1] if "--stage" in a else "all" for m, a in runner.calls if m == "train"]
     assert stages == ["all", "all", "all", "all"]  # READ's own training made the autoencoder: no second one
     # READ's evaluations done: a new variant needs READ's autoencoder only, and it is there
@@ -334,13 +334,13 @@ def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
                       "evaluate read from the oracle's 500th neighbour --N 100",
                       "evaluate read on noisy images (std 0.1) --N 100", "evaluate read at brightness x0.6 --N 100"]
     runner = FakeRunner(read_top=0)
-    pipeline.run_steps(steps, log=lambda m: None, runner=runner)
+    scheduler.run_steps(steps, log=lambda m: None, runner=runner)
     names = sorted(f.stem for f in (tmp_path / "results" / "reach_target" / "read" / "eval").glob("*.json"))
     assert names == sorted(["spe_N0", "spe_N100", "cheat1_N0", "cheat1_N100", "cheat3_N0", "cheat3_N100", "cheat10_N0",
                             "cheat10_N100", "cheat500_N0", "cheat500_N1", "cheat500_N100", "spe_N100_noise0.1",
                             "spe_N100_bright0.6"])
     again = FakeRunner()
-    assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=again)["ran"] == 0
+    assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=again)["ran"] == 0
     assert not again.calls
     # without --protocols the weak task's oracle start is still evaluated, as the diagnosis
     diag = [s.label for s in pipeline.plan_steps(dataclasses.replace(cfg, protocols=())) if "oracle" in s.label]
@@ -359,14 +359,14 @@ def test_a_run_name_of_another_recipe_is_refused(tmp_path, capsys):
     work, since its finished evaluations would count as this recipe's; the fields that change
     inference only, or that training fills from the data, are not the recipe."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",), media_episodes=0)
-    pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
     f = tmp_path / "results" / "reach_target" / "read" / "eval" / "spe_N0.json"
     r = json.loads(f.read_text())
     r["configs"]["sde"].update(update="cold", rounds=3)  # inference only
     r["configs"]["denoiser"]["motion_std"] = [0.1] * 10  # from the training set
     f.write_text(json.dumps(r))
     assert all(s.done() for s in pipeline.plan_steps(cfg))
-    with pytest.raises(pipeline.PipelineError, match=r"another recipe .*differs in sde\.lam\).*--run-name read=NEW_NAME"):
+    with pytest.raises(scheduler.PipelineError, match=r"another recipe .*differs in sde\.lam\).*--run-name read=NEW_NAME"):
         pipeline.plan_steps(dataclasses.replace(cfg, overrides=("L=0.1",)))
     assert pipeline.plan_steps(dataclasses.replace(cfg, overrides=("L=0.1",), run_names=(("read", "read_L01"),)))
     r["configs"]["train"]["steps"] = 7
@@ -383,15 +383,15 @@ def test_eta_prices_each_step_by_its_own_label(tmp_path):
     read, det = steps
     by_label = {read.label: [2100.0]}
     by_kind = {"train": [2100.0]}
-    assert pipeline._eta([det], by_label, by_kind) == 2100.0  # nothing known of the regressor yet
+    assert scheduler._eta([det], by_label, by_kind) == 2100.0  # nothing known of the regressor yet
     by_label[det.label] = [420.0]
     by_kind["train"].append(420.0)
-    assert pipeline._eta([read, det], by_label, by_kind) == 2520.0
-    assert pipeline._eta([read], {}, {}) is None
+    assert scheduler._eta([read, det], by_label, by_kind) == 2520.0
+    assert scheduler._eta([read], {}, {}) is None
     # earlier runs' timings (results/<task>/pipeline_timing.json) price what this run has not timed yet
     prior = {"label": {det.label: [400.0, 440.0]}, "kind": {"train": [2000.0, 420.0], "verify": [60.0]}}
-    assert pipeline._eta([read, det], {}, {}, prior) == 1210.0 + 420.0
-    assert pipeline._eta([det], {det.label: [300.0]}, {"train": [300.0]}, prior) == 300.0  # this run first
+    assert scheduler._eta([read, det], {}, {}, prior) == 1210.0 + 420.0
+    assert scheduler._eta([det], {det.label: [300.0]}, {"train": [300.0]}, prior) == 300.0  # this run first
 
 
 def test_shards_split_the_tasks(tmp_path):
@@ -491,7 +491,7 @@ def test_parallel_steps_wait_for_what_they_need_and_give_the_same_results(tmp_pa
     variant = dict(methods=("read", "deterministic", "read_sf"),
                    variants=(("read_sf", "read", ("sde.self_feed=0.5",)),), read_N=(0, 100))
     seq = _cfg(tmp_path / "seq", **variant)
-    pipeline.run_steps(pipeline.plan_steps(seq), log=lambda m: None, runner=FakeRunner(read_top=0, media_outcome=0))
+    scheduler.run_steps(pipeline.plan_steps(seq), log=lambda m: None, runner=FakeRunner(read_top=0, media_outcome=0))
     par = _cfg(tmp_path / "par", **variant)
     steps = pipeline.plan_steps(par)
     shared = next(s for s in steps if s.label.endswith("(autoencoder only)"))
@@ -504,8 +504,8 @@ def test_parallel_steps_wait_for_what_they_need_and_give_the_same_results(tmp_pa
         cfg = _cfg(root, **variant)
         steps = pipeline.plan_steps(cfg)
         starter, lines = _Starter(FakeRunner(read_top=0, media_outcome=0), seed), []
-        out = pipeline.run_steps(steps, log=lines.append, jobs=3, start=starter, poll=0,
-                                 log_dir=root / "logs")
+        out = scheduler.run_steps(steps, log=lines.append, jobs=3, start=starter, poll=0,
+                                  log_dir=root / "logs")
         assert starter.peak == 3 and starter.running == 0
         trainings = [argv for kind, argv in starter.events if kind == "start" and "experiments.train" in argv]
         assert {argv[argv.index("--task") + 1] for argv in trainings[:2]} == {"reach_target", "push_button"}
@@ -515,47 +515,26 @@ def test_parallel_steps_wait_for_what_they_need_and_give_the_same_results(tmp_pa
                                  if f.name != "pipeline_timing.json")
         assert files(root) == files(tmp_path / "seq")
         assert any("started; 3 running" in ln for ln in lines) and any(ln.startswith("done") for ln in lines)
-        assert pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=3,
-                                  start=_Starter(FakeRunner()), poll=0)["ran"] == 0
+        assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=3,
+                                   start=_Starter(FakeRunner()), poll=0)["ran"] == 0
 
 
 def test_a_parallel_failure_stops_new_steps_and_shows_the_steps_log(tmp_path):
     cfg = _cfg(tmp_path)
     starter = _Starter(FakeRunner(), fail=lambda argv: "--model" in argv and "deterministic" in argv)
-    with pytest.raises(pipeline.PipelineError, match="(?s)train deterministic` failed.*the step's own error"):
-        pipeline.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=2, start=starter, poll=0,
-                           log_dir=tmp_path / "logs")
+    with pytest.raises(scheduler.PipelineError, match="(?s)train deterministic` failed.*the step's own error"):
+        scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=2, start=starter, poll=0,
+                            log_dir=tmp_path / "logs")
     assert starter.running == 0  # the running steps finished; none started after the failure
     failed = next(i for i, (kind, argv) in enumerate(starter.events)
                   if kind == "exit" and "deterministic" in argv and "--model" in argv)
     assert not any(kind == "start" for kind, _ in starter.events[failed:])
     # a failed replay: nothing is trained on that task
     starter = _Starter(FakeRunner(verify_rate=0.97))
-    with pytest.raises(pipeline.PipelineError, match="ground truth did not replay"):
-        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path / "b")), log=lambda m: None, jobs=4,
-                           start=starter, poll=0)
+    with pytest.raises(scheduler.PipelineError, match="ground truth did not replay"):
+        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path / "b")), log=lambda m: None, jobs=4,
+                            start=starter, poll=0)
     assert not any("experiments.train" in e[1] for e in starter.events)
-
-
-def test_parallel_steps_run_as_processes_with_their_own_logs(tmp_path):
-    """The default starter: real processes, each step's output in its own log file."""
-    import sys
-    out = tmp_path / "out"
-    out.mkdir()
-    first = pipeline.Step("generate", "reach_target", "make a", [sys.executable, "-c", f"print('made a'); open(r'{out}/a', 'w')"],
-                          made=(out / "a").exists)
-    second = [pipeline.Step("train", "reach_target", f"use a {k}", [
-        sys.executable, "-c", f"import os, time; assert os.path.exists(r'{out}/a'); time.sleep(0.2); "
-                              f"print('used'); open(r'{out}/b{k}', 'w')"],
-        made=(out / f"b{k}").exists, needs=[first]) for k in range(3)]
-    first.users = second
-    lines = []
-    summary = pipeline.run_steps([first, *second], log=lines.append, jobs=2, log_dir=tmp_path / "logs", poll=0.05)
-    assert summary["ran"] == 4 and all((out / f"b{k}").exists() for k in range(3))
-    assert (tmp_path / "logs" / "reach_target" / "make_a.log").read_text() == "made a\n"
-    assert (tmp_path / "logs" / "reach_target" / "use_a_2.log").read_text() == "used\n"
-    with pytest.raises(ValueError, match="jobs"):
-        pipeline.run_steps([first], jobs=0)
 
 
 def test_an_interrupted_parallel_grid_stops_its_running_steps(tmp_path):
@@ -569,7 +548,7 @@ def test_an_interrupted_parallel_grid_stops_its_running_steps(tmp_path):
         return started[0]
 
     with pytest.raises(KeyboardInterrupt):
-        pipeline.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, jobs=2, start=start, poll=0)
+        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, jobs=2, start=start, poll=0)
     assert started[0].returncode == -15
 
 
@@ -590,38 +569,16 @@ def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
     assert pipeline.training_progress(tmp_path / "nothing yet") == "starting"
 
     done: set = set()
-    steps = [pipeline.Step("train", "reach_target", "train read", ["x"], made=lambda: "x" in done,
-                           progress=lambda: pipeline.training_progress(run)),
-             pipeline.Step("evaluate", "push_button", "evaluate read --N 100", ["y"], made=lambda: "y" in done)]
+    steps = [scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: "x" in done,
+                            progress=lambda: pipeline.training_progress(run)),
+             scheduler.Step("evaluate", "push_button", "evaluate read --N 100", ["y"], made=lambda: "y" in done)]
     start = lambda argv, path: _FakeProc(0, 3, lambda: done.add(argv[0]))  # noqa: E731
     lines = []
-    pipeline.run_steps(steps, log=lines.append, jobs=2, start=start, poll=0, heartbeat=0)
+    scheduler.run_steps(steps, log=lines.append, jobs=2, start=start, poll=0, heartbeat=0)
     beats = [ln for ln in lines if ln.startswith("running")]
     assert beats and "reach_target: train read (0:00:00, vae done, read 2250/5000)" in beats[0]
     assert "push_button: evaluate read --N 100 (0:00:00)" in beats[0] and "0 waiting" in beats[0]
     done.clear()
     quiet = []
-    pipeline.run_steps(steps, log=quiet.append, jobs=2, start=start, poll=0)
+    scheduler.run_steps(steps, log=quiet.append, jobs=2, start=start, poll=0)
     assert not any(ln.startswith("running") for ln in quiet)  # the default: every 10 minutes
-
-
-@pytest.mark.parametrize("jobs", [1, 2])
-def test_a_steps_cpu_time_is_recorded_beside_its_wall_clock(tmp_path, jobs):
-    """The timing record holds the step process's CPU time: a step that computes records about its
-    work, one that waits records far less than its wall clock (a pause or a job beside it inflates
-    the wall clock, not the CPU time)."""
-    import sys
-
-    timing = tmp_path / "results" / "reach_target" / pipeline.TIMING_FILE
-    busy = "import time\nt = time.process_time()\nwhile time.process_time() - t < 0.6: pass"
-    steps = [pipeline.Step("train", "reach_target", name, [sys.executable, "-c", code + f"\nopen(r'{tmp_path / name}', 'w')"],
-                           made=(tmp_path / name).exists, timing=timing)
-             for name, code in (("busy", busy), ("idle", "import time; time.sleep(1.5)"))]
-    pipeline.run_steps(steps, log=lambda m: None, jobs=jobs, log_dir=tmp_path / "logs", poll=0.05)
-    rec = json.loads(timing.read_text())["steps"]
-    assert rec["busy"]["cpu_seconds"] >= 0.5
-    assert rec["idle"].get("cpu_seconds", 0.0) < 0.5 * rec["idle"]["seconds"]
-    row = next(ln for ln in report.cost_lines(tmp_path / "results") if ln.startswith("| RT"))
-    cpu = rec["busy"]["cpu_seconds"] + rec["idle"].get("cpu_seconds", 0.0)
-    share = "" if "cpu_seconds" in rec["idle"] else " (1/2)"
-    assert f" | {cpu / 60:.1f}{share} | " in row

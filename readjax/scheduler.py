@@ -1,0 +1,334 @@
+"""Running a list of dependent steps, each one command: in order, or up to J at once.
+
+A :class:`Step` is a subprocess (its ``argv``) with a test for "done" on disk (``made``), what it
+publishes once it exits 0 (``after``), the steps it ``needs`` finished first and the steps that use its
+output (``users``: a step whose users are all finished is not needed). :func:`run_steps` runs the
+steps not done, one after the other or ``jobs`` at once (each started as soon as what it needs is
+finished, from the task with the fewest running steps first), with progress lines and an ETA priced
+from earlier runs, and records each step's wall clock and CPU time beside the task's results
+(``pipeline_timing.json``, read by the report's cost table). ``readjax.pipeline`` plans the grid's
+steps; this module knows nothing of tasks, methods or datasets.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import resource
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+
+class PipelineError(RuntimeError):
+    """A step failed, or a split's ground truth does not replay at 100 %."""
+
+
+@dataclass
+class Step:
+    kind: str  # generate / verify / train / evaluate / media
+    task: str
+    label: str
+    argv: list[str]
+    made: Callable[[], bool]  # whether its output is there
+    after: Callable[[], None] = field(default=lambda: None)
+    timing: Path | None = None  # the task's pipeline_timing.json, where its wall clock is recorded
+    users: list["Step"] = field(default_factory=list)  # the steps that need its output (none: a final one)
+    wanted: Callable[[], bool] = field(default=lambda: True)  # a final step run only on a condition
+    # the steps that must be finished before this one starts (``run_steps`` with jobs > 1; one job
+    # runs the steps in their listed order, which respects these)
+    needs: list["Step"] = field(default_factory=list)
+    # how far a running step has got, for the periodic "running:" lines (a training: its stages' steps)
+    progress: Callable[[], str] | None = None
+
+    def needed(self) -> bool:
+        """Whether this step is wanted and, unless it is a final step, a step that uses its output is
+        still to run."""
+        return self.wanted() and (not self.users or not all(u.done() for u in self.users))
+
+    def done(self) -> bool:
+        """Its output is there, or nothing wants it."""
+        return self.made() or not self.needed()
+
+    def status(self) -> str:
+        """``done`` (its output is there), ``skip`` (not needed: what it feeds is finished, or its
+        condition does not hold) or ``todo``."""
+        return "done" if self.made() else "skip" if not self.needed() else "todo"
+
+
+TIMING_FILE = "pipeline_timing.json"
+
+
+def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: float | None = None) -> None:
+    """Add a finished step's wall clock to its task's ``pipeline_timing.json`` (committed beside the
+    results, read by ``experiments.report``): seconds, when, and the machine's core count and load
+    average when it started (2-core timings beside another job are not idle-machine timings).
+    A step that ran before under the same label (the same task regenerated on another machine, a
+    replicate grid) keeps its first record, which the cost table reads: the cost of producing the
+    task's results once; later runs are appended under ``repeats``, never overwriting it.
+    ``cpu_seconds``: the CPU time (user + system) of the step's process, which neither another job
+    beside it nor a pause (a stopped process) inflates as they do the wall clock."""
+    if step.timing is None:
+        return
+    f = step.timing
+    record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
+    entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+             "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
+    if cpu_seconds:
+        entry["cpu_seconds"] = round(cpu_seconds, 1)
+    if step.label in record["steps"]:
+        record.setdefault("repeats", {}).setdefault(step.label, []).append(entry)
+    else:
+        record["steps"][step.label] = entry
+    f.parent.mkdir(parents=True, exist_ok=True)
+    f.write_text(json.dumps(record, indent=2))
+
+
+def _load() -> float | None:
+    try:
+        return round(os.getloadavg()[0], 2)
+    except OSError:  # not on every platform
+        return None
+
+
+def timing_records(results: str | Path) -> dict[str, dict[str, dict]]:
+    """Every task's recorded step timings under ``results`` (``<task>/pipeline_timing.json``, see
+    :func:`record_timing`): {task: {label: record}}; unreadable files are skipped."""
+    records = {}
+    for f in sorted(Path(results).glob(f"*/{TIMING_FILE}")):
+        try:
+            record = json.loads(f.read_text())
+            records[record["task"]] = record["steps"]
+        except (json.JSONDecodeError, KeyError):
+            continue
+    return records
+
+
+def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
+    """Seconds of steps finished before (:func:`timing_records`: other runs, sessions and
+    machines): {"label": {...}, "kind": {...}}, for the ETA before this run has timed a step of its
+    own."""
+    prior: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}}
+    for steps in timing_records(results).values():
+        for label, st in steps.items():
+            prior["label"].setdefault(label, []).append(st["seconds"])
+            prior["kind"].setdefault(st["kind"], []).append(st["seconds"])
+    return prior
+
+
+def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subprocess.run,
+              prior: dict[str, dict[str, list[float]]] | None = None, jobs: int = 1, start=None,
+              log_dir: str | Path | None = None, poll: float = 1.0, heartbeat: float = 600.0) -> dict:
+    """Run the steps not yet done; returns {"ran": k, "skipped": s, "seconds": {...}}. Progress and
+    an ETA (:func:`_eta`; ``prior``: :func:`prior_costs`) go to ``log``.
+
+    ``jobs`` = 1 runs them one after the other in their listed order (``runner``, its output on this
+    terminal). ``jobs`` > 1 keeps up to that many running at once (``start(argv, log_path)`` returns
+    a process with ``poll()``; default ``subprocess.Popen``), each started once every step it
+    ``needs`` is finished, from the task with the fewest running steps first, in listed order otherwise:
+    a GPU holds a dozen trainings, a CPU two. Each
+    step's output then goes to ``log_dir/<task>/<label>.log`` (None: this terminal, interleaved), and
+    every ``heartbeat`` seconds a line says what is running, for how long and how far it has got.
+    A failed step stops new starts; the running ones finish (and are kept) before the error."""
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    todo = [s for s in steps if not s.done()]
+    skipped = len(steps) - len(todo)
+    log(f"pipeline: {len(steps)} steps, {skipped} already done, {len(todo)} to run"
+        + (f", up to {jobs} at once" if jobs > 1 else ""))
+    if jobs > 1:
+        return _run_parallel(todo, skipped, jobs, log, start or _popen, prior, log_dir, poll, heartbeat)
+    by_kind: dict[str, list[float]] = {}  # seconds of finished steps, by kind and by label
+    by_label: dict[str, list[float]] = {}
+    t_start = time.time()
+    ran = 0
+    for k, step in enumerate(todo, 1):
+        if step.done():  # finished meanwhile (another shard), or its condition no longer holds
+            log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (skipped: {step.status()})")
+            skipped += 1
+            continue
+        ran += 1
+        eta = _eta(todo[k - 1:], by_label, by_kind, prior)
+        log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
+            f"{', ETA ' + _hms(eta) if eta is not None else ''})")
+        t0, load, cpu0 = time.time(), _load(), _children_cpu()
+        proc = runner(step.argv)
+        if proc.returncode != 0:
+            raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
+                                f"re-run: finished steps are skipped")
+        _finish(step, t0, load, by_kind, by_label, _children_cpu() - cpu0)
+    return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
+
+
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of this process's children that have exited and been waited for:
+    its difference across one child's reaping is that child's CPU time."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: dict,
+            cpu_seconds: float | None = None) -> None:
+    """A step's command exited 0: publish its output (``after``), check it is there, record its time."""
+    step.after()
+    if not step.made():
+        raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
+                            f"ground truth did not replay at 100 %)")
+    seconds = time.time() - t0
+    by_kind.setdefault(step.kind, []).append(seconds)
+    by_label.setdefault(step.label, []).append(seconds)
+    record_timing(step, seconds, load, cpu_seconds)
+
+
+def _popen(argv: list[str], log_path: Path | None):
+    if log_path is None:
+        return subprocess.Popen(argv)
+    with open(log_path, "w") as out:  # the child keeps its own descriptor
+        return subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT)
+
+
+def step_log_path(log_dir: str | Path, step: Step) -> Path:
+    """Where ``run_steps`` with jobs > 1 writes a step's output: LOG_DIR/<task>/<label as a file name>.log."""
+    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in step.label).strip("_")
+    return Path(log_dir) / step.task / f"{name}.log"
+
+
+def _tail(path: Path | None, lines: int = 15) -> str:
+    if path is None or not path.exists():
+        return ""
+    text = path.read_text(errors="replace").splitlines()[-lines:]
+    return "\n" + "\n".join("    " + ln for ln in text)
+
+
+def _run_parallel(todo: list[Step], skipped: int, jobs: int, log, start, prior, log_dir, poll: float,
+                  heartbeat: float = 600.0) -> dict:
+    """``run_steps`` with up to ``jobs`` steps at once (see there)."""
+    pending = list(todo)
+    running: dict[int, tuple[Step, object, float, float | None, Path | None]] = {}  # id(step) -> ...
+    try:
+        return _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running, heartbeat)
+    finally:  # an error or a kill of this process: stop the steps it started (each resumes when re-run)
+        for _, proc, *_ in running.values():
+            if proc.poll() is None:
+                proc.terminate()
+
+
+def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running, heartbeat=600.0) -> dict:
+    by_kind: dict[str, list[float]] = {}
+    by_label: dict[str, list[float]] = {}
+    t_start, ran, failures, started = time.time(), 0, [], 0
+    last_beat = time.time()
+
+    def ready(step: Step) -> bool:
+        waiting = {id(s) for s in pending} | set(running)
+        return all(id(n) not in waiting and n.done() for n in step.needs)
+
+    while pending or running:
+        if not failures:
+            while len(running) < jobs:
+                candidates = [s for s in pending if ready(s)]
+                if not candidates:
+                    break
+                # spread over the tasks (the task with the fewest steps running first), in listed order
+                # otherwise: every task's READ trains before any task's baselines fill the slots
+                busy = [s.task for s, *_ in running.values()]
+                step = min(candidates, key=lambda s: busy.count(s.task))
+                pending[:] = [s for s in pending if s is not step]  # by identity: Step's == compares fields
+                started += 1
+                if step.done():  # finished meanwhile (another shard), or its condition no longer holds
+                    log(f"[{started}/{len(todo)}] {step.task}: {step.label}  (skipped: {step.status()})")
+                    skipped += 1
+                    continue
+                path = None if log_dir is None else step_log_path(log_dir, step)
+                if path is not None:
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                eta = _eta(pending + [s for s, *_ in running.values()] + [step], by_label, by_kind, prior)
+                log(f"[{started}/{len(todo)}] {step.task}: {step.label}  (started; {len(running) + 1} running, "
+                    f"elapsed {_hms(time.time() - t_start)}{', ETA ' + _hms(eta / jobs) if eta is not None else ''}"
+                    f"{', log ' + str(path) if path is not None else ''})")
+                load = _load()
+                running[id(step)] = (step, start(step.argv, path), time.time(), load, path)
+                ran += 1
+            if pending and not running:
+                stuck = pending[0]
+                raise PipelineError(f"{stuck.task}: `{stuck.label}` waits for steps that cannot finish: "
+                                    + ", ".join(f"`{n.label}` ({n.status()})" for n in stuck.needs if not n.done()))
+        elif not running:
+            break
+        finished, cpu = [], {}
+        for k, v in running.items():
+            cpu0 = _children_cpu()
+            if v[1].poll() is not None:  # reaped by this poll: the rusage difference is its CPU time
+                finished.append((k, v))
+                cpu[k] = _children_cpu() - cpu0
+        if not finished:
+            if time.time() - last_beat >= heartbeat:
+                last_beat = time.time()
+                log(running_line(running.values(), pending, by_label, by_kind, prior, jobs, t_start))
+            time.sleep(poll)
+            continue
+        for k, (step, proc, t0, load, path) in finished:
+            del running[k]
+            if proc.returncode != 0:
+                failures.append(f"{step.task}: `{step.label}` failed (exit {proc.returncode}){_tail(path)}")
+                log(f"failed  {step.task}: {step.label} (exit {proc.returncode}); waiting for the "
+                    f"{len(running)} running step(s), starting no more")
+                continue
+            try:
+                _finish(step, t0, load, by_kind, by_label, cpu[k])
+            except PipelineError as e:
+                failures.append(str(e))
+                continue
+            log(f"done    {step.task}: {step.label}  in {_hms(time.time() - t0)}")
+    if failures:
+        raise PipelineError("; ".join(failures) + "\nfix it and re-run: finished steps are skipped")
+    return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
+
+
+def running_line(running, pending, by_label, by_kind, prior, jobs: int, t_start: float) -> str:
+    """The periodic line of a parallel grid: each running step, how long it has run and how far it has
+    got (its ``progress``), and the ETA of the grid."""
+    now = time.time()
+    parts = []
+    for step, _, t0, *_ in running:
+        how_far = ""
+        if step.progress is not None:
+            try:
+                how_far = f", {step.progress()}"
+            except (OSError, ValueError, KeyError):  # a record half-written: the next line will have it
+                pass
+        parts.append(f"{step.task}: {step.label} ({_hms(now - t0)}{how_far})")
+    eta = _eta(list(pending) + [s for s, *_ in running], by_label, by_kind, prior)
+    return (f"running  {'; '.join(parts)}  (elapsed {_hms(now - t_start)}, {len(pending)} waiting"
+            f"{', ETA ' + _hms(eta / jobs) if eta is not None else ''})")
+
+
+def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[str, list[float]],
+         prior: dict[str, dict[str, list[float]]] | None = None) -> float | None:
+    """Seconds left: each remaining step at the mean time of the finished steps most like it, the
+    first found of: this run's steps with its label (the same step on another task: "train read",
+    "evaluate read --N 100"), earlier runs' with its label (``prior``), this run's of its kind,
+    earlier runs' of its kind, and this run's of any kind. So a 35-minute READ training does not
+    price a 7-minute regressor's, nor one training every verify. None before anything is known."""
+    prior = prior or {"label": {}, "kind": {}}
+    known = [v for v in (*by_kind.values(), *prior["kind"].values()) if v]
+    if not known:
+        return None
+    mean = lambda v: sum(v) / len(v)  # noqa: E731
+    mean_all = mean([x for v in known for x in v])
+
+    def cost(s: Step) -> float:
+        for table, key in ((by_label, s.label), (prior["label"], s.label), (by_kind, s.kind), (prior["kind"], s.kind)):
+            if table.get(key):
+                return mean(table[key])
+        return mean_all
+
+    return sum(cost(s) for s in remaining)
+
+
+def _hms(seconds: float) -> str:
+    s = int(seconds)
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"
