@@ -7,6 +7,7 @@ retrieval (cheat<i>_N<N>: Tables 4, 5, 8) and perturbed test images (Table 9).
 examples:
   python -m experiments.report --runs runs/ --out docs/results.md
   python -m experiments.report --runs runs/ --exclude 'read_try*' --out docs/results.md
+  python -m experiments.report --runs results/ --include read_v3_5k_rep '*_conv' table7 --out docs/baselines.md   # one grid's runs
   python -m experiments.report --runs runs/ --compare 'read: spe_N100'   # paired tests vs that row
   python -m experiments.report --runs results/ --compare 'read: retrieval only (N=0)' deterministic
   python -m experiments.report --runs results/ --main read_v3_5k deterministic_v3_5k   # the paper's main table
@@ -28,6 +29,9 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--runs", default="runs", help="runs root to scan for */eval/*.json and sweep.json")
     p.add_argument("--out", default="docs/results.md", help="markdown output (the chart goes beside it)")
+    p.add_argument("--include", nargs="*", default=[], metavar="PATTERN",
+                   help="only runs (and sweeps) whose folder name or table name matches one of these glob "
+                        "patterns, e.g. a focused report of one grid's runs: --include read_v3_5k_rep '*_conv' table7")
     p.add_argument("--exclude", nargs="*", default=[], metavar="PATTERN",
                    help="leave out runs whose folder name or table name (path below --runs without the task "
                         "folder, e.g. runs3/read) matches a glob pattern")
@@ -72,7 +76,7 @@ def main(argv=None) -> None:
     def main_section(results, chart):  # the sections shown first: the main table, then the claims
         return [line for section in sections for line in section(results, chart)]
 
-    text = write_report(args.runs, args.out, tuple(args.exclude), tuple(args.compare),
+    text = write_report(args.runs, args.out, tuple(args.exclude), tuple(args.compare), include=tuple(args.include),
                         main=main_section if sections else None)
     print(text.split("## Provenance")[0])
     print(f"wrote {args.out}")

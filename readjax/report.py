@@ -27,10 +27,14 @@ def run_label(run_dir: Path, runs_root: Path, task: str) -> str:
     return "/".join(parts) or run_dir.name
 
 
-def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
+def _matches(run_dir: Path, label: str, patterns: tuple[str, ...]) -> bool:
+    return any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in patterns)
+
+
+def collect(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple[str, ...] = ()) -> list[dict]:
     """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``, except those of runs
     whose name (folder name, or the label of ``run_label``) matches one of the ``exclude`` glob
-    patterns."""
+    patterns, and, where ``include`` patterns are given, only those of runs matching one of them."""
     root = Path(runs_root)
     out = []
     for f in sorted(root.rglob("eval/*.json")):
@@ -42,7 +46,7 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = ()) -> list[dict]:
             continue
         run_dir = f.parent.parent
         label = run_label(run_dir, root, r["task"])
-        if any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in exclude):
+        if _matches(run_dir, label, exclude) or (include and not _matches(run_dir, label, include)):
             continue
         r["_run_name"] = label
         r["_verified"] = verification.evaluation_verified(root, r)  # its test split replayed 100 % (on record here)
@@ -334,19 +338,28 @@ def start_lines(results: list[dict]) -> list[str]:
     return lines
 
 
-def sweeps(runs_root: str | Path) -> list[dict]:
-    return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))]
+def sweeps(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple[str, ...] = ()) -> list[dict]:
+    """Every sweep below ``runs_root`` (``sweep.json``), filtered by its folder name as ``collect``
+    filters runs."""
+    out = []
+    for f in sorted(Path(runs_root).rglob("sweep.json")):
+        if _matches(f.parent, f.parent.name, exclude) or (include and not _matches(f.parent, f.parent.name, include)):
+            continue
+        out.append(json.loads(f.read_text()))
+    return out
 
 
 def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),
                  compare: tuple[str, ...] | str | None = (),
-                 main: Callable[[list[dict], Path], list[str]] | None = None) -> str:
-    """The markdown report of every evaluation under ``runs_root``; ``compare``: the rows to pair
-    every other row with (one paired table each); ``main``: builds a section shown first, from the
-    results and a chart path beside ``out`` (``readjax.main_table.lines`` for the paper's main table)."""
+                 main: Callable[[list[dict], Path], list[str]] | None = None, include: tuple[str, ...] = ()) -> str:
+    """The markdown report of every evaluation under ``runs_root`` (runs and sweeps filtered by
+    ``exclude`` / ``include`` name patterns, see ``collect``); ``compare``: the rows to pair every
+    other row with (one paired table each); ``main``: builds a section shown first, from the results
+    and a chart path beside ``out`` (``readjax.main_table.lines`` for the paper's main table)."""
     compare = (compare,) if isinstance(compare, str) else tuple(compare or ())
-    results = collect(runs_root, exclude)
-    if not results and not sweeps(runs_root):
+    results = collect(runs_root, exclude, include)
+    found_sweeps = sweeps(runs_root, exclude, include)
+    if not results and not found_sweeps:
         raise FileNotFoundError(f"no evaluation results or sweeps under {runs_root} (run experiments.evaluate "
                                 f"or experiments.sweep first)")
     out = Path(out)
@@ -376,7 +389,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
         lines += comparison_lines(listed, reference)
     lines += across_lines(by_protocol["main"])
     lines += start_lines(by_protocol["main"])
-    for sw in sweeps(runs_root):
+    for sw in found_sweeps:
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]
     lines += cost_lines(runs_root)

@@ -4,6 +4,7 @@ import json
 
 from experiments import _cli
 from experiments import report as report_cli
+from readjax import report
 
 
 def _write(root, task, run, name, rate, **cfg):
@@ -39,6 +40,30 @@ def test_report_groups_protocols_and_excludes(tmp_path, capsys):
     assert "| older/read: spe_N10 | 87.5 | – | 87.5 |" in main
     assert "99.0" not in text and "read_try" not in text and "97.0" not in text
     assert out.with_suffix(".png").exists() and "![success by task](results.png)" in main
+
+
+def test_include_keeps_only_the_named_runs_and_sweeps(tmp_path):
+    """--include: a focused report of one grid's runs (and sweeps) out of a results folder holding
+    many; --exclude still applies within it."""
+    from readjax import sweep
+
+    runs = tmp_path / "runs"
+    _write(runs, "reach_target", "read_rep", "spe_N10", 0.5)
+    _write(runs, "reach_target", "det_conv", "direct", 0.25, N=None)
+    _write(runs, "reach_target", "vpsde_conv", "N100", 0.125)
+    _write(runs, "reach_target", "read_old", "spe_N10", 0.99)
+    cell = {**sweep.DEFAULTS, "success": 0.5, "seeds": [1, 2], "outcomes": [1, 0]}
+    for name in ("table7", "old_sweep"):
+        sweep.write_sweep({"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [100]}, "episodes": 2,
+                           "cells": [cell]}, runs / "reach_target" / name)
+    out = tmp_path / "focused.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--include", "read_rep", "*_conv",
+                                      "table7", "--exclude", "vpsde*"]) == 0
+    text = out.read_text()
+    assert "| read_rep: spe_N10 | 50.0 |" in text and "| det_conv | 25.0 |" in text
+    assert "read_old" not in text and "vpsde_conv" not in text and "99.0" not in text
+    assert text.count("## Sweep: read on reach_target") == 1
+    assert len(report.sweeps(runs)) == 2 and len(report.sweeps(runs, include=("table7",))) == 1
 
 
 def test_report_without_results_is_a_clear_error(tmp_path, capsys):
