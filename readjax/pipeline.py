@@ -170,13 +170,17 @@ def _ordinal(k: int) -> str:
 # The paper's protocols beyond the main table, each a set of READ evaluations (``--protocols``);
 # ``top`` is the largest --read-N.
 PROTOCOL_EVALUATIONS = {
-    "oracle": "Tables 4 and 5: from the oracle's i-th nearest demonstration, i = 1, 3, 10, at N = 0 and top",
+    "oracle": "Tables 4 and 5: from the oracle's i-th nearest demonstration, i = 1, 3, 10, at N = 0 and top "
+              "(READ-O and READ-L runs too, at their default N: Table 4's rows)",
     "poor": "Table 8: from the oracle's 500th neighbour (a poor retrieval) at N = 0, 1 and top",
     "perturbed": "Table 9: SPE top-1 at N = top on test images with Gaussian noise (--noise) and with a "
                  "brightness factor (--brightness)",
 }
 ORACLE_RANKS = (1, 3, 10)
 POOR_RANK = 500
+# Table 4 also starts the two ablations from the oracle's i-th neighbour (refined at their default N):
+# with the oracle protocol, their runs (and variants) are evaluated so too
+ORACLE_ABLATIONS = ("read_o", "read_l")
 
 
 def eval_requests(method: str, read_n) -> list[EvalRequest]:
@@ -213,8 +217,6 @@ def split_fingerprint(split_dir: Path, episodes: int) -> str | None:
         from readjax.data import store
         _FINGERPRINTS[key] = store.load_dataset(split_dir, limit=episodes).fingerprint
     return _FINGERPRINTS[key]
-
-
 
 
 def label_configs(cfg: PipelineConfig, label: str) -> dict:
@@ -356,6 +358,9 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                 shared[source].users.append(train)
             uses = [evaluate_step(cfg, task, run, method, request, python, shown=label)
                     for request in eval_requests(method, cfg.read_N)]
+            if "oracle" in cfg.protocols and method in ORACLE_ABLATIONS:
+                uses += [evaluate_step(cfg, task, run, method, EvalRequest(None, rank), python, shown=label)
+                         for rank in ORACLE_RANKS]
             if label == "read":  # READ itself, not a variant: media, diagnosis and the paper's protocols
                 top = uses[list(cfg.read_N).index(max(cfg.read_N))]  # what media and diagnosis compare with
                 if cfg.media_episodes and max(cfg.read_N) > 0:

@@ -78,7 +78,8 @@ class FakeRunner:
             rank = int(arg("--rank")) if oracle else 1
             noise = float(arg("--noise")) if "--noise" in argv else 0.0
             bright = float(arg("--brightness")) if "--brightness" in argv else 1.0
-            name = (f"cheat{rank}_N{n}" if oracle else f"spe_N{n}") if n is not None else "direct"
+            name = (f"cheat{rank}_N{n}" if oracle else f"spe_N{n}") if n is not None else f"cheat{rank}" if oracle \
+                else "direct"
             name += (f"_noise{noise:g}" if noise else "") + (f"_bright{bright:g}" if bright != 1.0 else "")
             k = int(arg("--episodes"))
             ok = self.media_outcome if "--out" in argv else self.read_top if (n == 100 and not oracle) else 1
@@ -342,6 +343,20 @@ def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
     again = FakeRunner()
     assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=again)["ran"] == 0
     assert not again.calls
+    # READ-O and READ-L (and their variants) from the oracle's neighbours too, at their default N (Table 4)
+    abl = _cfg(tmp_path / "abl", tasks=("RT",), methods=("read", "read_l", "read_o_em"), media_episodes=0,
+               variants=(("read_o_em", "read_o", ("read_o.sampler=em",)),), protocols=("oracle",))
+    steps = pipeline.plan_steps(abl)
+    labels = [s.label for s in steps if s.kind == "evaluate" and not s.label.startswith("evaluate read ")]
+    assert labels == ["evaluate read_l", "evaluate read_l from the oracle's start",
+                      "evaluate read_l from the oracle's 3rd neighbour", "evaluate read_l from the oracle's 10th neighbour",
+                      "evaluate read_o_em", "evaluate read_o_em from the oracle's start",
+                      "evaluate read_o_em from the oracle's 3rd neighbour",
+                      "evaluate read_o_em from the oracle's 10th neighbour"]
+    scheduler.run_steps(steps, log=lambda m: None, runner=FakeRunner())
+    names = sorted(f.stem for f in (tmp_path / "abl" / "results" / "reach_target" / "read_o_em" / "eval").glob("*.json"))
+    assert names == ["cheat1", "cheat10", "cheat3", "direct"]
+    assert scheduler.run_steps(pipeline.plan_steps(abl), log=lambda m: None, runner=FakeRunner())["ran"] == 0
     # without --protocols the weak task's oracle start is still evaluated, as the diagnosis
     diag = [s.label for s in pipeline.plan_steps(dataclasses.replace(cfg, protocols=())) if "oracle" in s.label]
     assert diag == ["evaluate read from the oracle's start --N 0 (READ below 80 %)",
