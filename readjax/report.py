@@ -157,11 +157,12 @@ def stacks(results: list[dict]) -> tuple[dict[str, str], list[str], dict[tuple, 
     return common, differing, groups
 
 
-def cost_lines(runs_root: str | Path) -> list[str]:
+def cost_lines(runs_root: str | Path, only_tasks: set[str] | None = None) -> list[str]:
     """The pipeline's wall clock per task (``<task>/pipeline_timing.json``, written by
     ``experiments.pipeline``): minutes per step group and in all, with the machine's load when the
-    steps started (timings beside another job are not idle-machine timings)."""
-    records = timing_records(runs_root)
+    steps started (timings beside another job are not idle-machine timings); ``only_tasks``: those
+    tasks' records alone (a focused report's)."""
+    records = {t: r for t, r in timing_records(runs_root).items() if only_tasks is None or t in only_tasks}
     if not records:
         return []
 
@@ -392,7 +393,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     for sw in found_sweeps:
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]
-    lines += cost_lines(runs_root)
+    lines += cost_lines(runs_root, {r["task"] for r in results} | {sw["task"] for sw in found_sweeps} if include else None)
     lines += provenance_lines(results)
     lines += ["", "| task | test seeds | episodes |", "|---|---|---|"]
     lines += [f"| {t} | {a}..{b} | {n} |" for t, a, b, n in seeds]

@@ -64,6 +64,15 @@ def test_include_keeps_only_the_named_runs_and_sweeps(tmp_path):
     assert "read_old" not in text and "vpsde_conv" not in text and "99.0" not in text
     assert text.count("## Sweep: read on reach_target") == 1
     assert len(report.sweeps(runs)) == 2 and len(report.sweeps(runs, include=("table7",))) == 1
+    # the cost table keeps the tasks the focused report shows
+    for task in ("reach_target", "push_button"):
+        (runs / task).mkdir(exist_ok=True)
+        (runs / task / "pipeline_timing.json").write_text(json.dumps({"task": task, "steps": {
+            "train x": {"kind": "train", "seconds": 60.0}}}))
+    assert [ln.split(" |")[0] for ln in report.cost_lines(runs) if ln.startswith("| ") and "task" not in ln] == \
+        ["| RT", "| PB", "| all 2"]
+    assert [ln.split(" |")[0] for ln in report.cost_lines(runs, {"reach_target"})
+            if ln.startswith("| ") and "task" not in ln] == ["| RT", "| all 1"]
 
 
 def test_report_without_results_is_a_clear_error(tmp_path, capsys):
