@@ -31,6 +31,12 @@ def _matches(run_dir: Path, label: str, patterns: tuple[str, ...]) -> bool:
     return any(fnmatch.fnmatch(run_dir.name, pat) or fnmatch.fnmatch(label, pat) for pat in patterns)
 
 
+def _kept(run_dir: Path, label: str, exclude: tuple[str, ...], include: tuple[str, ...]) -> bool:
+    """Whether a run (or sweep) folder passes the report's name filters: no ``exclude`` pattern
+    matches it and, where ``include`` patterns are given, one of them does."""
+    return not _matches(run_dir, label, exclude) and (not include or _matches(run_dir, label, include))
+
+
 def collect(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple[str, ...] = ()) -> list[dict]:
     """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``, except those of runs
     whose name (folder name, or the label of ``run_label``) matches one of the ``exclude`` glob
@@ -46,7 +52,7 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple
             continue
         run_dir = f.parent.parent
         label = run_label(run_dir, root, r["task"])
-        if _matches(run_dir, label, exclude) or (include and not _matches(run_dir, label, include)):
+        if not _kept(run_dir, label, exclude, include):
             continue
         r["_run_name"] = label
         r["_verified"] = verification.evaluation_verified(root, r)  # its test split replayed 100 % (on record here)
@@ -342,12 +348,8 @@ def start_lines(results: list[dict]) -> list[str]:
 def sweeps(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple[str, ...] = ()) -> list[dict]:
     """Every sweep below ``runs_root`` (``sweep.json``), filtered by its folder name as ``collect``
     filters runs."""
-    out = []
-    for f in sorted(Path(runs_root).rglob("sweep.json")):
-        if _matches(f.parent, f.parent.name, exclude) or (include and not _matches(f.parent, f.parent.name, include)):
-            continue
-        out.append(json.loads(f.read_text()))
-    return out
+    return [json.loads(f.read_text()) for f in sorted(Path(runs_root).rglob("sweep.json"))
+            if _kept(f.parent, f.parent.name, exclude, include)]
 
 
 def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),

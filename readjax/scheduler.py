@@ -258,12 +258,12 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
                                     + ", ".join(f"`{n.label}` ({n.status()})" for n in stuck.needs if not n.done()))
         elif not running:
             break
-        finished, cpu = [], {}
+        finished, cpu, reaped_before = [], {}, _children_cpu()
         for k, v in running.items():
-            cpu0 = _children_cpu()
             if v[1].poll() is not None:  # reaped by this poll: the rusage difference is its CPU time
                 finished.append((k, v))
-                cpu[k] = _children_cpu() - cpu0
+                reaped = _children_cpu()
+                cpu[k], reaped_before = reaped - reaped_before, reaped
         if not finished:
             if time.time() - last_beat >= heartbeat:
                 last_beat = time.time()

@@ -121,11 +121,10 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         for n in ns:
             name = f"{CELL_PREFIX}N{n}"
             f = run_dir / "eval" / f"{name}.json"  # in the sweep's folder, also for a reference run's cell
-            reused = reusable_evaluation(trained, cfg.model, n, test_ds) if trained != run_dir else None
             if f.exists():
                 result = json.loads(f.read_text())
-            elif reused is not None:  # the reference run's own evaluation of these episodes (the pipeline's)
-                result = reused
+            elif trained != run_dir and (reused := reusable_evaluation(trained, cfg.model, n, test_ds)) is not None:
+                result = reused  # the reference run's own evaluation of these episodes (the pipeline's)
                 f.parent.mkdir(parents=True, exist_ok=True)
                 f.write_text(json.dumps(result))
             else:
