@@ -343,13 +343,13 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                     shared[source] = Step("train", task, f"train {source} (autoencoder only)",
                                           train_argv(cfg, task, source, python) + ["--stage", "vae"],
                                           made=(source_run / "vae" / "stop.json").exists,
-                                          needs=list(prepare))
+                                          needs=list(prepare), resumes=True)
                     steps.append(shared[source])
                     if source in trains:  # never two trainings of one autoencoder at once (jobs > 1)
                         trains[source].needs.append(shared[source])
             train = Step("train", task, f"train {label}", argv, made=marker.exists,
                          after=lambda marker=marker, run=run: _trained(marker, run, results),
-                         progress=lambda run=run: training_progress(run),
+                         progress=lambda run=run: training_progress(run), resumes=True,
                          needs=list(prepare))  # nothing trains before its task's replay holds
             trains[label] = train
             if label in shared:

@@ -184,7 +184,8 @@ def cost_lines(runs_root: str | Path, only_tasks: set[str] | None = None) -> lis
              "evaluate: every evaluation of every method). Load: the 1-minute load average when the "
              "task's steps started, min-max. CPU: the steps' CPU minutes (user + system; recorded since "
              "2026-12-04, with the share of steps that have it), which a job beside them or a pause does "
-             "not inflate as it does the wall clock.", "",
+             "not inflate as it does the wall clock. A training stopped and resumed counts every run "
+             "of it (since 2026-12-04; earlier records hold its last run only).", "",
              "| task | " + " | ".join(cols) + " | total | CPU | cores | load |", "|---" * (len(cols) + 5) + "|"]
     totals = dict.fromkeys(cols + ["total", "cpu"], 0.0)
     for task in sorted(records, key=lambda t: order_of.get(t, len(order_of))):

@@ -6,8 +6,9 @@ output (``users``: a step whose users are all finished is not needed). :func:`ru
 steps not done, one after the other or ``jobs`` at once (each started as soon as what it needs is
 finished, from the task with the fewest running steps first), with progress lines and an ETA priced
 from earlier runs, and records each step's wall clock and CPU time beside the task's results
-(``pipeline_timing.json``, read by the report's cost table). ``readjax.pipeline`` plans the grid's
-steps; this module knows nothing of tasks, methods or datasets.
+(``pipeline_timing.json``, read by the report's cost table); a step that ``resumes`` (a training)
+is recorded with the time of every run it took, across stops and sessions. ``readjax.pipeline``
+plans the grid's steps; this module knows nothing of tasks, methods or datasets.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import resource
 import subprocess
 import time
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
@@ -43,6 +45,10 @@ class Step:
     needs: list["Step"] = field(default_factory=list)
     # how far a running step has got, for the periodic "running:" lines (a training: its stages' steps)
     progress: Callable[[], str] | None = None
+    # a re-run continues the work of a stopped one (a training, from its checkpoints): the time of every
+    # run of it adds up to its cost (``record_piece``). A step that starts over does not: its record is
+    # its last run's.
+    resumes: bool = False
 
     def needed(self) -> bool:
         """Whether this step is wanted and, unless it is a final step, a step that uses its output is
@@ -62,7 +68,8 @@ class Step:
 TIMING_FILE = "pipeline_timing.json"
 
 
-def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: float | None = None) -> None:
+def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: float | None = None,
+                  started: float | None = None) -> None:
     """Add a finished step's wall clock to its task's ``pipeline_timing.json`` (committed beside the
     results, read by ``experiments.report``): seconds, when, and the machine's core count and load
     average when it started (2-core timings beside another job are not idle-machine timings).
@@ -70,13 +77,24 @@ def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: f
     replicate grid) keeps its first record, which the cost table reads: the cost of producing the
     task's results once; later runs are appended under ``repeats``, never overwriting it.
     ``cpu_seconds``: the CPU time (user + system) of the step's process, which neither another job
-    beside it nor a pause (a stopped process) inflates as they do the wall clock."""
+    beside it nor a pause (a stopped process) inflates as they do the wall clock.
+    A step that ``resumes`` adds the earlier runs' pieces (:func:`record_piece`) to its seconds and CPU
+    seconds and counts its runs in ``pieces``; ``started`` (its run's start, ``time.time()``) tells this
+    run's own heartbeat piece from them."""
     if step.timing is None:
         return
     f = step.timing
     record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
              "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
+    earlier = record.get(UNFINISHED, {}).pop(step.label, {})
+    earlier.pop(_piece_key(started), None)  # this run's own heartbeat piece: counted in ``seconds``
+    if not record.get(UNFINISHED):
+        record.pop(UNFINISHED, None)
+    if step.resumes and earlier:
+        entry["seconds"] = round(seconds + sum(p["seconds"] for p in earlier.values()), 1)
+        cpu_seconds = (cpu_seconds or 0.0) + sum(p.get("cpu_seconds", 0.0) for p in earlier.values())
+        entry["pieces"] = len(earlier) + 1
     if cpu_seconds:
         entry["cpu_seconds"] = round(cpu_seconds, 1)
     if step.label in record["steps"]:
@@ -85,6 +103,46 @@ def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: f
         record["steps"][step.label] = entry
     f.parent.mkdir(parents=True, exist_ok=True)
     f.write_text(json.dumps(record, indent=2))
+
+
+UNFINISHED = "unfinished"  # the timing file's pieces of steps that have not finished yet
+
+
+def _piece_key(started: float | None) -> str:
+    """A run's piece is keyed by when it started, in UTC to the microsecond."""
+    return "" if started is None else datetime.fromtimestamp(started, timezone.utc).isoformat(timespec="microseconds")
+
+
+def record_piece(step: Step, started: float, seconds: float, cpu_seconds: float | None) -> None:
+    """A ``resumes`` step's run so far, kept under ``unfinished`` in its task's timing file (one piece
+    per run, keyed by its start): written by the grid's heartbeat while it runs and when the grid is
+    stopped (Ctrl-C, ``kill``, a session's end), so that its record, once it finishes in a later run,
+    counts the time of every run (:func:`record_timing`). At most a heartbeat's time is missed when
+    the grid dies without a word (``kill -9``, a machine gone)."""
+    if step.timing is None or not step.resumes:
+        return
+    f = step.timing
+    record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
+    piece = {"seconds": round(seconds, 1), "kind": step.kind}
+    if cpu_seconds:
+        piece["cpu_seconds"] = round(cpu_seconds, 1)
+    record.setdefault(UNFINISHED, {}).setdefault(step.label, {})[_piece_key(started)] = piece
+    f.parent.mkdir(parents=True, exist_ok=True)
+    f.write_text(json.dumps(record, indent=2))
+
+
+def _process_cpu(proc) -> float | None:
+    """CPU seconds (user + system, its waited-for children's included) of a running process, from
+    ``/proc`` (Linux); None where it cannot be read (another platform, a process already gone)."""
+    pid = getattr(proc, "pid", None)
+    if pid is None:
+        return None
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    # after the command name: state is field 3; utime, stime, cutime, cstime are fields 14-17
+    return sum(int(x) for x in fields[11:15]) / os.sysconf("SC_CLK_TCK")
 
 
 def _load() -> float | None:
@@ -155,8 +213,13 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
         log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
             f"{', ETA ' + _hms(eta) if eta is not None else ''})")
         t0, load, cpu0 = time.time(), _load(), _children_cpu()
-        proc = runner(step.argv)
+        try:
+            proc = runner(step.argv)
+        except KeyboardInterrupt:  # the grid stopped: the step's run so far is a piece of its cost
+            record_piece(step, t0, time.time() - t0, _children_cpu() - cpu0)
+            raise
         if proc.returncode != 0:
+            record_piece(step, t0, time.time() - t0, _children_cpu() - cpu0)
             raise PipelineError(f"{step.task}: `{step.label}` failed (exit {proc.returncode}); fix it and "
                                 f"re-run: finished steps are skipped")
         _finish(step, t0, load, by_kind, by_label, _children_cpu() - cpu0)
@@ -175,12 +238,13 @@ def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: 
     """A step's command exited 0: publish its output (``after``), check it is there, record its time."""
     step.after()
     if not step.made():
+        record_piece(step, t0, time.time() - t0, cpu_seconds)
         raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
                             f"ground truth did not replay at 100 %)")
     seconds = time.time() - t0
     by_kind.setdefault(step.kind, []).append(seconds)
     by_label.setdefault(step.label, []).append(seconds)
-    record_timing(step, seconds, load, cpu_seconds)
+    record_timing(step, seconds, load, cpu_seconds, started=t0)
 
 
 def _popen(argv: list[str], log_path: Path | None):
@@ -211,8 +275,9 @@ def _run_parallel(todo: list[Step], skipped: int, jobs: int, log, start, prior, 
     try:
         return _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, running, heartbeat)
     finally:  # an error or a kill of this process: stop the steps it started (each resumes when re-run)
-        for _, proc, *_ in running.values():
+        for step, proc, t0, *_ in running.values():
             if proc.poll() is None:
+                record_piece(step, t0, time.time() - t0, _process_cpu(proc))
                 proc.terminate()
 
 
@@ -268,11 +333,14 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
             if time.time() - last_beat >= heartbeat:
                 last_beat = time.time()
                 log(running_line(running.values(), pending, by_label, by_kind, prior, jobs, t_start))
+                for step, proc, t0, *_ in running.values():  # kept should the grid die without a word
+                    record_piece(step, t0, last_beat - t0, _process_cpu(proc))
             time.sleep(poll)
             continue
         for k, (step, proc, t0, load, path) in finished:
             del running[k]
             if proc.returncode != 0:
+                record_piece(step, t0, time.time() - t0, cpu[k])
                 failures.append(f"{step.task}: `{step.label}` failed (exit {proc.returncode}){_tail(path)}")
                 log(f"failed  {step.task}: {step.label} (exit {proc.returncode}); waiting for the "
                     f"{len(running)} running step(s), starting no more")

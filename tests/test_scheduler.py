@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 
 import pytest
 
@@ -50,3 +51,53 @@ def test_a_steps_cpu_time_is_recorded_beside_its_wall_clock(tmp_path, jobs):
     cpu = rec["busy"]["cpu_seconds"] + rec["idle"].get("cpu_seconds", 0.0)
     share = "" if "cpu_seconds" in rec["idle"] else " (1/2)"
     assert f" | {cpu / 60:.1f}{share} | " in row
+
+
+def _busy_step(tmp_path, name: str, seconds: float, resumes: bool) -> scheduler.Step:
+    """A step that computes for ``seconds`` of CPU time, then marks itself done."""
+    code = (f"import time\nt = time.process_time()\nwhile time.process_time() - t < {seconds}: pass\n"
+            f"open(r'{tmp_path / name}', 'w')")
+    return scheduler.Step("train", "reach_target", name, [sys.executable, "-c", code], made=(tmp_path / name).exists,
+                          timing=tmp_path / "results" / "reach_target" / scheduler.TIMING_FILE, resumes=resumes)
+
+
+def _stop_at_first_heartbeat(message: str) -> None:
+    if message.startswith("running"):
+        raise KeyboardInterrupt  # as the grid's SIGTERM handler does
+
+
+def test_a_resumed_steps_record_adds_the_time_of_its_every_run(tmp_path):
+    """A training stopped with the grid (Ctrl-C, kill, a session's end) and finished by a later run is
+    recorded with the time of both runs; a step that starts over keeps its last run's only."""
+    timing = tmp_path / "results" / "reach_target" / scheduler.TIMING_FILE
+    steps = [_busy_step(tmp_path, "resumed", 1.0, resumes=True), _busy_step(tmp_path, "restarted", 1.0, resumes=False)]
+    with pytest.raises(KeyboardInterrupt):
+        scheduler.run_steps(steps, log=_stop_at_first_heartbeat, jobs=2, log_dir=tmp_path / "logs", poll=0.05,
+                            heartbeat=0.5)
+    assert not any(s.made() for s in steps)
+    pieces = json.loads(timing.read_text())[scheduler.UNFINISHED]
+    assert list(pieces) == ["resumed"]  # a step that starts over leaves no piece
+    (first,) = pieces["resumed"].values()
+    assert first["seconds"] >= 0.5 and first["cpu_seconds"] > 0
+    scheduler.run_steps(steps, log=lambda m: None, jobs=2, log_dir=tmp_path / "logs", poll=0.05, heartbeat=0.2)
+    record = json.loads(timing.read_text())
+    assert scheduler.UNFINISHED not in record  # this run's own heartbeat pieces are not counted twice
+    resumed, restarted = record["steps"]["resumed"], record["steps"]["restarted"]
+    assert resumed["pieces"] == 2 and "pieces" not in restarted  # the restarted one's lost run is not its cost
+    assert resumed["seconds"] >= first["seconds"] + 0.9 and resumed["cpu_seconds"] >= first["cpu_seconds"] + 0.9
+
+
+def test_one_job_records_the_piece_of_a_stopped_resumed_step(tmp_path):
+    """The same bookkeeping on the one-at-a-time path: the run that Ctrl-C stopped is a piece."""
+    step = _busy_step(tmp_path, "resumed", 0.3, resumes=True)
+
+    def stopped(argv):
+        time.sleep(0.1)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        scheduler.run_steps([step], log=lambda m: None, runner=stopped)
+    scheduler.run_steps([step], log=lambda m: None)
+    record = json.loads(step.timing.read_text())
+    assert record["steps"]["resumed"]["pieces"] == 2 and scheduler.UNFINISHED not in record
+    assert record["steps"]["resumed"]["seconds"] >= 0.1 + 0.3
