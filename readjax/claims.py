@@ -24,7 +24,7 @@ import numpy as np
 from readjax import tasks
 from readjax.config import preset
 from readjax.paired import counts, paired_outcomes
-from readjax.result_record import eval_config_of, is_eval, protocol
+from readjax.result_record import eval_config_of, is_eval, protocol, training_stops
 
 ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l")  # each a method's name
 TOP_N = 100  # READ's N in the paper's tables (Table 7, setting A)
@@ -144,9 +144,8 @@ def training_lines(results: list[dict], runs: dict[str, str], doc_dir: Path | No
                 picked.setdefault(r["task"], r)
         for task in [t for t in tasks.names() if t in picked]:
             r = picked[task]
-            for stage, rec in r["training"].items():
-                why = (rec.get("stop") or {}).get("reason", "unfinished")
-                cell = f"{tasks.code_of(task)} {rec.get('steps', '?')}"
+            for stage, steps, why in training_stops(r):
+                cell = f"{tasks.code_of(task)} {steps}"
                 curve = Path(r["_file"]).parent.parent / "training" / stage / "loss.png"
                 if curve.exists():
                     cell = f"[{cell}]({os.path.relpath(curve, doc_dir) if doc_dir is not None else curve})"

@@ -20,7 +20,7 @@ from readjax import failure_modes, paper, tasks
 from readjax.config import preset
 from readjax.paired import discordant
 from readjax.report import success_chart
-from readjax.result_record import is_direct_eval, is_spe_eval
+from readjax.result_record import is_direct_eval, is_spe_eval, training_stops
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
 
@@ -182,12 +182,10 @@ def training_lines(rows: dict[str, dict[str, dict]]) -> list[str]:
         counts: dict[str, int] = {}
         missing = 0
         for r in by_task.values():
-            if not r.get("training"):
-                missing += 1
-                continue
-            for stage, rec in r["training"].items():
-                why = (rec.get("stop") or {}).get("reason", "unfinished")
-                key = f"{stage} {rec['steps']} ({why})"
+            stops = training_stops(r)
+            missing += not stops
+            for stage, steps, why in stops:
+                key = f"{stage} {steps} ({why})"
                 counts[key] = counts.get(key, 0) + 1
         parts = [f"{k} x {n}" for k, n in sorted(counts.items())]
         if missing:

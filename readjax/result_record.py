@@ -134,3 +134,11 @@ def is_default_eval(r: dict, method: str, n: int | None, oracle_rank: int | None
 def is_direct_eval(r: dict) -> bool:
     """Whether ``r`` is a one-pass method's evaluation on clean test images (``direct``)."""
     return protocol(r) == "main" and r.get("name") == "direct"
+
+
+def training_stops(r: dict) -> list[tuple[str, int | str, str]]:
+    """How an evaluated run's models trained, from the record's ``training`` entry: (stage, its last
+    step, why it stopped: the rule's reason, e.g. "converged" or "step cap", else "unfinished"), one
+    per stage; [] where the record has none (evaluations older than the training records)."""
+    return [(stage, rec.get("steps", "?"), (rec.get("stop") or {}).get("reason", "unfinished"))
+            for stage, rec in (r.get("training") or {}).items()]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from readjax.config import DEFAULT_N
 from readjax.config import configs_to_dict, override, presets
-from readjax.result_record import by_seed, is_default_eval, is_spe_eval, protocol, recipe_differences
+from readjax.result_record import by_seed, is_default_eval, is_spe_eval, protocol, recipe_differences, training_stops
 
 
 def _read(N, update="cold_anchor", rounds=2, run_sde=("cold_anchor", 2), **cfg):
@@ -70,3 +70,13 @@ def test_recipe_differences_name_the_trained_fields_only():
     assert recipe_differences(recorded, wanted) == []
     other = configs_to_dict(override(configs, ["sde.lam=0.1", "denoiser.layers=3"]), ["denoiser", "sde"])
     assert recipe_differences(other, wanted) == ["denoiser.layers", "sde.lam"]
+
+
+def test_training_stops_reads_each_stage_with_why_it_stopped():
+    """One (stage, last step, reason) per trained stage; a stage without a stop record is unfinished;
+    an evaluation older than the training records has none."""
+    r = {"training": {"vae": {"steps": 3000, "stop": {"reason": "step cap"}},
+                      "read": {"steps": 9500, "stop": {"reason": "converged"}}, "extra": {}}}
+    assert training_stops(r) == [("vae", 3000, "step cap"), ("read", 9500, "converged"),
+                                               ("extra", "?", "unfinished")]
+    assert training_stops({}) == [] == training_stops({"training": None})
