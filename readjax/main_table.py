@@ -19,8 +19,8 @@ from pathlib import Path
 from readjax import failure_modes, paper, tasks
 from readjax.config import preset
 from readjax.paired import discordant
-from readjax.report import success_chart
 from readjax.result_record import is_direct_eval, is_spe_eval, training_stops
+from readjax.tables import success_chart
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
 

@@ -5,18 +5,18 @@ from __future__ import annotations
 
 import fnmatch
 import json
-import re
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from readjax import failure_modes, tasks, verification
+from readjax.cost_table import cost_lines
 from readjax.paired import mcnemar_p, paired_outcomes
-from readjax.scheduler import timing_records
-from readjax.result_record import PROTOCOLS, eval_config_of, protocol, with_defaults
-from readjax.tables import success_table
+from readjax.replicates import across_lines
+from readjax.result_record import PROTOCOLS, protocol
 from readjax.sweep import CELL_PREFIX, format_table7
+from readjax.tables import markdown_table, natural_key, row_label, success_chart, success_table
 
 
 def run_label(run_dir: Path, runs_root: Path, task: str) -> str:
@@ -62,16 +62,6 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple
     return out
 
 
-def row_label(r: dict) -> str:
-    name = r.get("name", "eval")
-    cfg = r.get("eval_config", {})
-    if cfg.get("N") == 0 and cfg.get("retrieval") == "spe":
-        return f"{r['_run_name']}: retrieval only (N=0)"
-    if name == "direct":  # a one-pass method without retrieval (Deterministic)
-        return r["_run_name"]
-    return f"{r['_run_name']}: {name}"
-
-
 def rows_by_label(results: list[dict]) -> dict[str, dict[str, dict]]:
     """The results as table rows: row label -> task -> result."""
     rows: dict[str, dict[str, dict]] = {}
@@ -84,64 +74,6 @@ def tables(results: list[dict]) -> dict[str, dict[str, float]]:
     rows = rows_by_label(results)
     return {label: success_table({t: r["success_rate"] for t, r in rows[label].items()})
             for label in sorted(rows, key=natural_key)}
-
-
-def natural_key(text: str) -> tuple:
-    """Row order: by run (plain text order, so ``runs/...`` stays before ``runs1k/...``), then by
-    the evaluation name with numbers by value (cheat3 before cheat10, N10 before N100)."""
-    run, _, name = text.partition(":")
-    return run, [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", name)]
-
-
-def markdown_table(table: dict[str, dict[str, float]]) -> str:
-    cols = [c for c in list(tasks.AVG16) + ["Avg", "Avg12", "Avg16"] if any(c in r for r in table.values())]
-    lines = ["| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
-    for label, r in table.items():
-        lines.append(f"| {label} | " + " | ".join(f"{r[c]:.1f}" if c in r else "–" for c in cols) + " |")
-    return "\n".join(lines)
-
-
-BARS_UP_TO = 8  # rows a grouped bar chart stays readable with; more rows are drawn as a heat map
-
-
-def success_chart(table: dict[str, dict[str, float]], path: Path) -> None:
-    """The success table as a picture: grouped bars (a colour per row) for up to ``BARS_UP_TO`` rows,
-    beyond that a heat map (a line per row, the value written in each cell; blank where a row did
-    not run a task), whose height grows with the rows so every label stays legible."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    cols = [c for c in list(tasks.AVG16) + ["Avg", "Avg12", "Avg16"] if any(c in r for r in table.values())]
-    labels = list(table)
-    if len(labels) > BARS_UP_TO:
-        grid = np.array([[table[lb].get(c, np.nan) for c in cols] for lb in labels], dtype=float)
-        fig, ax = plt.subplots(figsize=(max(6.0, 0.55 * len(cols) + 0.09 * max(map(len, labels)) + 1.5),
-                                        0.22 * len(labels) + 1.2))
-        ax.imshow(np.ma.masked_invalid(grid), cmap="RdYlGn", vmin=0, vmax=100, aspect="auto")
-        for (i, j), v in np.ndenumerate(grid):
-            if np.isfinite(v):
-                ax.text(j, i, f"{v:.0f}", ha="center", va="center", fontsize=6)
-        ax.set_xticks(np.arange(len(cols)), cols, fontsize=7)
-        ax.xaxis.tick_top()
-        ax.set_yticks(np.arange(len(labels)), labels, fontsize=6)
-        ax.set_title("success (%)", fontsize=8, pad=14)
-    else:
-        width = 0.8 / max(len(labels), 1)
-        fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(cols) + 2), 3.8))
-        x = np.arange(len(cols))
-        colors = plt.get_cmap("tab10")  # one distinct colour per row
-        for i, label in enumerate(labels):
-            ax.bar(x + i * width - 0.4 + width / 2, [table[label].get(c, 0.0) for c in cols], width, label=label,
-                   color=colors(i % colors.N))
-        ax.set_xticks(x, cols)
-        ax.set_ylabel("success (%)")
-        ax.set_ylim(0, 105)
-        ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, bbox_inches="tight")  # long row labels stay whole
-    plt.close(fig)
 
 
 def machine_of(r: dict) -> str:
@@ -161,53 +93,6 @@ def stacks(results: list[dict]) -> tuple[dict[str, str], list[str], dict[tuple, 
         key = (machine_of(r), *(str(r.get("versions", {}).get(k, "–")) for k in differing))
         groups.setdefault(key, []).append(r)
     return common, differing, groups
-
-
-def cost_lines(runs_root: str | Path, only_tasks: set[str] | None = None) -> list[str]:
-    """The pipeline's wall clock per task (``<task>/pipeline_timing.json``, written by
-    ``experiments.pipeline``): minutes per step group and in all, with the machine's load when the
-    steps started (timings beside another job are not idle-machine timings); ``only_tasks``: those
-    tasks' records alone (a focused report's)."""
-    records = {t: r for t, r in timing_records(runs_root).items() if only_tasks is None or t in only_tasks}
-    if not records:
-        return []
-
-    def column(label: str, kind: str) -> str:  # one column per training, the rest summed by kind
-        return label if kind == "train" else kind
-
-    cols = list(dict.fromkeys(column(lb, st["kind"]) for steps in records.values() for lb, st in steps.items()))
-    order = ["generate", "verify"] + sorted(c for c in cols if c.startswith("train")) + ["evaluate", "media"]
-    cols = [c for c in order if c in cols] + [c for c in cols if c not in order]
-    order_of = {name: i for i, name in enumerate(tasks.names())}
-    lines = ["## Pipeline wall clock per task", "",
-             "Minutes per step as `experiments.pipeline` ran it (generate: test and training splits; "
-             "evaluate: every evaluation of every method). Load: the 1-minute load average when the "
-             "task's steps started, min-max. CPU: the steps' CPU minutes (user + system; recorded since "
-             "2026-12-04, with the share of steps that have it), which a job beside them or a pause does "
-             "not inflate as it does the wall clock. A training stopped and resumed counts every run "
-             "of it (since 2026-12-04; earlier records hold its last run only).", "",
-             "| task | " + " | ".join(cols) + " | total | CPU | cores | load |", "|---" * (len(cols) + 5) + "|"]
-    totals = dict.fromkeys(cols + ["total", "cpu"], 0.0)
-    for task in sorted(records, key=lambda t: order_of.get(t, len(order_of))):
-        steps = records[task]
-        mins = dict.fromkeys(cols, 0.0)
-        for lb, st in steps.items():
-            mins[column(lb, st["kind"])] += st["seconds"] / 60
-        total = sum(mins.values())
-        for c in cols:
-            totals[c] += mins[c]
-        totals["total"] += total
-        loads = [st["load_at_start"] for st in steps.values() if st.get("load_at_start") is not None]
-        cores = sorted({str(st.get("cpus")) for st in steps.values()})
-        load = f"{min(loads):.1f}-{max(loads):.1f}" if loads else "–"
-        cpu = [st["cpu_seconds"] / 60 for st in steps.values() if st.get("cpu_seconds")]
-        totals["cpu"] += sum(cpu)
-        cpu_cell = "–" if not cpu else f"{sum(cpu):.1f}" + ("" if len(cpu) == len(steps) else f" ({len(cpu)}/{len(steps)})")
-        lines.append(f"| {tasks.code_of(task)} | " + " | ".join(f"{mins[c]:.1f}" for c in cols)
-                     + f" | {total:.1f} | {cpu_cell} | {','.join(cores)} | {load} |")
-    lines.append(f"| all {len(records)} | " + " | ".join(f"{totals[c]:.1f}" for c in cols)
-                 + f" | {totals['total']:.1f} | {totals['cpu']:.1f} | | |")
-    return lines + [""]
 
 
 def provenance_lines(results: list[dict]) -> list[str]:
@@ -259,62 +144,6 @@ def comparison_lines(results: list[dict], reference: str) -> list[str]:
              "(two-sided; p < 0.05 is unlikely to be episode noise).", "",
              "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     lines += [f"| {label} | " + " | ".join(r.get(c, "–") for c in cols) + " |" for label, r in table.items()]
-    return lines + [""]
-
-
-def training_group(r: dict) -> str | None:
-    """What a result measures apart from which training produced it: the task, the method, every
-    config except ``train.seed``, the training set (its fingerprint, where recorded: the same
-    recipe on another machine's data is another experiment) and the evaluation (name and protocol
-    settings). Results with the same group and different training seeds are replicates of one
-    recipe; None when the result does not record its configs."""
-    configs = r.get("configs")
-    if not configs:
-        return None
-    configs = with_defaults(configs)
-    configs["train"] = {k: v for k, v in configs.get("train", {}).items() if k != "seed"}
-    # an evaluation recorded before an EvalConfig field existed ran with its default
-    eval_config = eval_config_of(r)
-    return json.dumps([r["task"], r.get("method"), configs, r.get("train_fingerprint"), r.get("name"),
-                       eval_config], sort_keys=True)
-
-
-def across_trainings(results: list[dict]) -> list[dict]:
-    """Groups of results (:func:`training_group`) produced by at least two trainings with different
-    ``train.seed``: per group its row labels, success rates, mean and range. On a task where
-    trainings disagree, one training's paired test against another method's says little about the
-    methods (BENCHMARKS.md 8g); the spread across trainings is the yardstick."""
-    groups: dict[str, list[dict]] = {}
-    for r in results:
-        g = training_group(r)
-        if g is not None:
-            groups.setdefault(g, []).append(r)
-    out = []
-    for members in groups.values():
-        seeds = {m["configs"].get("train", {}).get("seed") for m in members}
-        if len(seeds) < 2:
-            continue
-        members = sorted(members, key=lambda m: natural_key(row_label(m)))
-        rates = [100 * m["success_rate"] for m in members]
-        out.append({"task": members[0]["task"], "eval": members[0].get("name"),
-                    "rows": [row_label(m) for m in members],
-                    "seeds": [m["configs"].get("train", {}).get("seed") for m in members],
-                    "rates": rates, "mean": float(np.mean(rates)), "min": min(rates), "max": max(rates)})
-    return sorted(out, key=lambda g: (g["task"], natural_key(g["rows"][0])))
-
-
-def across_lines(results: list[dict]) -> list[str]:
-    groups = across_trainings(results)
-    if not groups:
-        return []
-    lines = ["## Across trainings (same recipe, different `train.seed`)", "",
-             "Rows whose configs and evaluation are identical except the training seed: each training's "
-             "success %, their mean and range.", "",
-             "| task | rows (seed) | success % | mean | range |", "|---|---|---|---|---|"]
-    for g in groups:
-        rows = "<br>".join(f"{r} ({s})" for r, s in zip(g["rows"], g["seeds"]))
-        rates = " / ".join(f"{x:.0f}" for x in g["rates"])
-        lines.append(f"| {tasks.code_of(g['task'])} | {rows} | {rates} | {g['mean']:.1f} | {g['min']:.0f}-{g['max']:.0f} |")
     return lines + [""]
 
 

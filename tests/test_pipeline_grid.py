@@ -11,7 +11,7 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import config, methods, pipeline, report, scheduler, verification
+from readjax import config, cost_table, methods, pipeline, scheduler, verification
 
 
 def _cfg(tmp_path, **kw):
@@ -140,7 +140,7 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     recorded = [json.loads((tmp_path / "results" / t / "pipeline_timing.json").read_text())["steps"]["train read"]
                 ["seconds"] for t in ("push_button", "reach_target")]
     assert prior["label"]["train read"] == recorded and len(prior["kind"]["verify"]) == 2
-    costs = report.cost_lines(tmp_path / "results")
+    costs = cost_table.cost_lines(tmp_path / "results")
     assert ("| task | generate | verify | train deterministic | train read | evaluate | media | total | CPU | cores "
             "| load |") in costs
     assert all(" | – | " in ln for ln in costs if ln.startswith(("| RT", "| PB")))  # fakes: no CPU time recorded
@@ -154,7 +154,7 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     timing = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
     assert timing["steps"][gen.label] == first
     assert [r["seconds"] for r in timing["repeats"][gen.label]] == [297.3, 12.0]
-    assert report.cost_lines(tmp_path / "results") == costs
+    assert cost_table.cost_lines(tmp_path / "results") == costs
     again = FakeRunner()
     assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
     assert again.calls == []

@@ -4,7 +4,7 @@ import json
 
 from experiments import _cli
 from experiments import report as report_cli
-from readjax import report
+from readjax import cost_table, report
 
 
 def _write(root, task, run, name, rate, **cfg):
@@ -69,9 +69,9 @@ def test_include_keeps_only_the_named_runs_and_sweeps(tmp_path):
         (runs / task).mkdir(exist_ok=True)
         (runs / task / "pipeline_timing.json").write_text(json.dumps({"task": task, "steps": {
             "train x": {"kind": "train", "seconds": 60.0}}}))
-    assert [ln.split(" |")[0] for ln in report.cost_lines(runs) if ln.startswith("| ") and "task" not in ln] == \
+    assert [ln.split(" |")[0] for ln in cost_table.cost_lines(runs) if ln.startswith("| ") and "task" not in ln] == \
         ["| RT", "| PB", "| all 2"]
-    assert [ln.split(" |")[0] for ln in report.cost_lines(runs, {"reach_target"})
+    assert [ln.split(" |")[0] for ln in cost_table.cost_lines(runs, {"reach_target"})
             if ln.startswith("| ") and "task" not in ln] == ["| RT", "| all 1"]
 
 
@@ -95,16 +95,6 @@ def test_provenance_separates_machines_and_differing_versions(tmp_path):
     assert "| machine | jax | results |" in prov
     assert "| gpu: 1 x NVIDIA H200 | y | vpsde: N100 (PB) |" in prov
     assert "| not recorded | x | read: spe_N10 (RT) |" in prov
-
-
-def test_rows_sort_numbers_by_value():
-    from readjax.report import natural_key
-
-    labels = ["read: cheat10_N0", "runs1k/read: spe_N10", "read: cheat1_N100", "read: cheat3_N0", "read: cheat1_N0",
-              "read: spe_N10", "read"]
-    assert sorted(labels, key=natural_key) == [
-        "read", "read: cheat1_N0", "read: cheat1_N100", "read: cheat3_N0", "read: cheat10_N0", "read: spe_N10",
-        "runs1k/read: spe_N10"]
 
 
 def test_mcnemar_exact_values():
@@ -191,21 +181,3 @@ def test_where_refinement_started_table(tmp_path):
     assert "| read_a: spe_N10 | 1 / 2 | 1 / 1 | 0 / 1 |" in section
     assert "| read_b: spe_N10 | 1 / 4 | – | – |" in section
     assert "det" not in section
-
-
-def test_the_chart_stays_legible_with_many_rows(tmp_path):
-    """Up to BARS_UP_TO rows: grouped bars of fixed height; beyond: a heat map whose height grows
-    with the rows (every row label readable), also where a row ran only some tasks."""
-    import matplotlib.image as mpimg
-
-    from readjax.report import BARS_UP_TO, success_chart
-
-    def height(rows: int) -> int:
-        table = {f"run_{i}: spe_N100": ({"RT": 50.0 + i, "PB": 90.0} if i % 2 else {"RT": 10.0}) for i in range(rows)}
-        path = tmp_path / f"chart_{rows}.png"
-        success_chart(table, path)
-        return mpimg.imread(path).shape[0]
-
-    few, many, more = height(BARS_UP_TO), height(3 * BARS_UP_TO), height(6 * BARS_UP_TO)
-    assert few < many < more
-    assert more - many > 0.8 * (many - few)  # about linear in the rows

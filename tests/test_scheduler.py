@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from readjax import report, scheduler
+from readjax import cost_table, scheduler
 
 
 def test_parallel_steps_run_as_processes_with_their_own_logs(tmp_path):
@@ -47,7 +47,7 @@ def test_a_steps_cpu_time_is_recorded_beside_its_wall_clock(tmp_path, jobs):
     rec = json.loads(timing.read_text())["steps"]
     assert rec["busy"]["cpu_seconds"] >= 0.5
     assert rec["idle"].get("cpu_seconds", 0.0) < 0.5 * rec["idle"]["seconds"]
-    row = next(ln for ln in report.cost_lines(tmp_path / "results") if ln.startswith("| RT"))
+    row = next(ln for ln in cost_table.cost_lines(tmp_path / "results") if ln.startswith("| RT"))
     cpu = rec["busy"]["cpu_seconds"] + rec["idle"].get("cpu_seconds", 0.0)
     share = "" if "cpu_seconds" in rec["idle"] else " (1/2)"
     assert f" | {cpu / 60:.1f}{share} | " in row
