@@ -98,12 +98,45 @@ def parser() -> argparse.ArgumentParser:
                         "order on this terminal; more write each step's output to RUNS/pipeline_logs/"
                         "<task>/<step>.log. A GPU holds a dozen (JAX's preallocation is turned off for them)")
     p.add_argument("--dry-run", action="store_true",
-                   help="list the steps, each done / skip (not needed) / todo; run nothing")
+                   help="list the steps, each done / skip (not needed) / todo, a todo step with its expected "
+                        "time (from the timing records under --results) and a training under way with how far "
+                        "it has got, then the work left in all and at --jobs; run nothing")
     return p
 
 
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
+
+
+def dry_run(steps, prior, jobs: int, results) -> None:
+    """List the steps, each done / skip / todo; a todo step with its expected time (from the timing
+    records under ``results``: the same step on another task or run, else the mean of its kind) and,
+    for a training under way, how far it has got; then the work left in all and at ``jobs``."""
+    from readjax import scheduler
+
+    total, priced = 0.0, True
+    for s in steps:
+        status = s.status()
+        line = f"{status}  {s.task}: {s.label}"
+        if status == "todo":
+            cost = scheduler.step_cost(s, {}, {}, prior)
+            priced &= cost is not None
+            total += cost or 0.0
+            line = f"{status}  ~{scheduler.hms(cost) if cost is not None else '?'}  {s.task}: {s.label}"
+            so_far = s.progress() if s.progress is not None else ""
+            if so_far:
+                line += f"  (so far: {so_far})"
+        print(line)
+    print("(skip: not needed here: everything that would use its output is finished, or its condition "
+          "does not hold)")
+    todo = sum(s.status() == "todo" for s in steps)
+    if todo and priced:
+        print(f"to run: {todo} steps, about {scheduler.hms(total)} of work ({scheduler.hms(total / jobs)} at "
+              f"--jobs {jobs}), priced from the timing records under {results}: the same step on another "
+              f"task, else the mean of its kind (rough for a training of a recipe not timed yet); a training "
+              f"under way is priced whole")
+    elif todo:
+        print(f"to run: {todo} steps (no timing records under {results} to price them yet)")
 
 
 def main(argv=None) -> int:
@@ -138,10 +171,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 1
     if args.dry_run:
-        for s in steps:
-            print(f"{s.status()}  {s.task}: {s.label}")
-        print("(skip: not needed here: everything that would use its output is finished, or its condition "
-              "does not hold)")
+        dry_run(steps, scheduler.prior_costs(cfg.results), args.jobs, cfg.results)
         return 0
     try:
         if args.jobs > 1:  # each process would otherwise claim 75 % of a GPU's memory

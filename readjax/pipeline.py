@@ -388,7 +388,7 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
 def training_progress(run: Path) -> str:
     """A training step's progress from its run folder, e.g. ``vae done, read 2250/5000``: each stage
     finished, or its last logged step against its step cap (a stage under the convergence rule may
-    stop before the cap)."""
+    stop before the cap); "" before any stage has logged a step."""
     from readjax import training
 
     parts = []
@@ -403,7 +403,7 @@ def training_progress(run: Path) -> str:
         except (OSError, KeyError, ValueError):
             cap = None
         parts.append(f"{stage} {rec['steps']}/{cap}" if cap else f"{stage} {rec['steps']}")
-    return ", ".join(parts) or "starting"
+    return ", ".join(parts)  # "": no stage has logged a step yet
 
 
 def _trained(marker: Path, run: Path, results: Path) -> None:

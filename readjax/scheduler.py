@@ -210,8 +210,8 @@ def run_steps(steps: list[Step], log: Callable[[str], None] = print, runner=subp
             continue
         ran += 1
         eta = _eta(todo[k - 1:], by_label, by_kind, prior)
-        log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {_hms(time.time() - t_start)}"
-            f"{', ETA ' + _hms(eta) if eta is not None else ''})")
+        log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (elapsed {hms(time.time() - t_start)}"
+            f"{', ETA ' + hms(eta) if eta is not None else ''})")
         t0, load, cpu0 = time.time(), _load(), _children_cpu()
         try:
             proc = runner(step.argv)
@@ -312,7 +312,7 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
                     path.parent.mkdir(parents=True, exist_ok=True)
                 eta = _eta(pending + [s for s, *_ in running.values()] + [step], by_label, by_kind, prior)
                 log(f"[{started}/{len(todo)}] {step.task}: {step.label}  (started; {len(running) + 1} running, "
-                    f"elapsed {_hms(time.time() - t_start)}{', ETA ' + _hms(eta / jobs) if eta is not None else ''}"
+                    f"elapsed {hms(time.time() - t_start)}{', ETA ' + hms(eta / jobs) if eta is not None else ''}"
                     f"{', log ' + str(path) if path is not None else ''})")
                 load = _load()
                 running[id(step)] = (step, start(step.argv, path), time.time(), load, path)
@@ -350,7 +350,7 @@ def _schedule(todo, skipped, jobs, log, start, prior, log_dir, poll, pending, ru
             except PipelineError as e:
                 failures.append(str(e))
                 continue
-            log(f"done    {step.task}: {step.label}  in {_hms(time.time() - t0)}")
+            log(f"done    {step.task}: {step.label}  in {hms(time.time() - t0)}")
     if failures:
         raise PipelineError("; ".join(failures) + "\nfix it and re-run: finished steps are skipped")
     return {"ran": ran, "skipped": skipped, "seconds": {k: sum(v) for k, v in by_kind.items()}}
@@ -365,13 +365,13 @@ def running_line(running, pending, by_label, by_kind, prior, jobs: int, t_start:
         how_far = ""
         if step.progress is not None:
             try:
-                how_far = f", {step.progress()}"
+                how_far = f", {step.progress() or 'starting'}"
             except (OSError, ValueError, KeyError):  # a record half-written: the next line will have it
                 pass
-        parts.append(f"{step.task}: {step.label} ({_hms(now - t0)}{how_far})")
+        parts.append(f"{step.task}: {step.label} ({hms(now - t0)}{how_far})")
     eta = _eta(list(pending) + [s for s, *_ in running], by_label, by_kind, prior)
-    return (f"running  {'; '.join(parts)}  (elapsed {_hms(now - t_start)}, {len(pending)} waiting"
-            f"{', ETA ' + _hms(eta / jobs) if eta is not None else ''})")
+    return (f"running  {'; '.join(parts)}  (elapsed {hms(now - t_start)}, {len(pending)} waiting"
+            f"{', ETA ' + hms(eta / jobs) if eta is not None else ''})")
 
 
 def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[str, list[float]],
@@ -381,22 +381,24 @@ def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[
     "evaluate read --N 100"), earlier runs' with its label (``prior``), this run's of its kind,
     earlier runs' of its kind, and this run's of any kind. So a 35-minute READ training does not
     price a 7-minute regressor's, nor one training every verify. None before anything is known."""
+    costs = [step_cost(s, by_label, by_kind, prior) for s in remaining]
+    return None if any(c is None for c in costs) else sum(costs)
+
+
+def step_cost(step: Step, by_label: dict[str, list[float]], by_kind: dict[str, list[float]],
+              prior: dict[str, dict[str, list[float]]] | None = None) -> float | None:
+    """One step's expected seconds, as :func:`_eta` prices it; None before anything is known."""
     prior = prior or {"label": {}, "kind": {}}
-    known = [v for v in (*by_kind.values(), *prior["kind"].values()) if v]
-    if not known:
-        return None
     mean = lambda v: sum(v) / len(v)  # noqa: E731
-    mean_all = mean([x for v in known for x in v])
-
-    def cost(s: Step) -> float:
-        for table, key in ((by_label, s.label), (prior["label"], s.label), (by_kind, s.kind), (prior["kind"], s.kind)):
-            if table.get(key):
-                return mean(table[key])
-        return mean_all
-
-    return sum(cost(s) for s in remaining)
+    for table, key in ((by_label, step.label), (prior["label"], step.label), (by_kind, step.kind),
+                       (prior["kind"], step.kind)):
+        if table.get(key):
+            return mean(table[key])
+    known = [x for v in (*by_kind.values(), *prior["kind"].values()) for x in v]
+    return mean(known) if known else None
 
 
-def _hms(seconds: float) -> str:
+def hms(seconds: float) -> str:
+    """Seconds as H:MM:SS."""
     s = int(seconds)
     return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"

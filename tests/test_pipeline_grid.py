@@ -419,7 +419,20 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     argv = ["--tasks", "RT", "--data", str(tmp_path / "d"), "--runs", str(tmp_path / "r"), "--results",
             str(tmp_path / "res"), "--dry-run"]
     assert _cli.run(pipeline_cli.main, argv) == 0
-    assert "todo  reach_target: generate test 100" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "todo  ~?  reach_target: generate test 100" in out and "no timing records" in out
+    # earlier runs' records price the steps: a training by its own label, the rest by their kind
+    timing = tmp_path / "res" / "push_button" / scheduler.TIMING_FILE
+    timing.parent.mkdir(parents=True)
+    timing.write_text(json.dumps({"task": "push_button", "steps": {
+        "train read": {"kind": "train", "seconds": 2100.0}, "generate test 100": {"kind": "generate", "seconds": 60.0}}}))
+    assert _cli.run(pipeline_cli.main, argv + ["--jobs", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "todo  ~0:35:00  reach_target: train read" in out and "todo  ~0:01:00  reach_target: generate test 100" in out
+    todo = [ln for ln in out.splitlines() if ln.startswith("todo")]
+    total = sum(int(h) * 3600 + int(m) * 60 + int(sec) for h, m, sec in
+                (ln.split("~")[1].split()[0].split(":") for ln in todo))
+    assert f"to run: {len(todo)} steps, about {scheduler.hms(total)} of work ({scheduler.hms(total / 2)} at --jobs 2)" in out
     assert _cli.run(pipeline_cli.main, argv + ["--shard", "2/2"]) == 2
     assert "--shard" in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, argv + ["--run-name", "read"]) == 2
@@ -434,7 +447,7 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
                "--protocols", "poor"]
     assert _cli.run(pipeline_cli.main, argv + variant) == 0
     out = capsys.readouterr().out
-    assert "todo  reach_target: train read_kin" in out and "500th neighbour --N 1" in out
+    assert "reach_target: train read_kin" in out and "500th neighbour --N 1" in out
 
 
 class _FakeProc:
@@ -581,7 +594,7 @@ def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
     assert pipeline.training_progress(run) == "vae done, read 0/5000"
     (run / "read" / "metrics.jsonl").write_text('{"step": 25}\n{"step": 2250}\n')
     assert pipeline.training_progress(run) == "vae done, read 2250/5000"
-    assert pipeline.training_progress(tmp_path / "nothing yet") == "starting"
+    assert pipeline.training_progress(tmp_path / "nothing yet") == ""
 
     done: set = set()
     steps = [scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: "x" in done,
