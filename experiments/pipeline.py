@@ -109,9 +109,10 @@ def _interrupt(signum, frame):
 
 
 def dry_run(steps, prior, jobs: int, results) -> None:
-    """List the steps, each done / skip / todo; a todo step with its expected time (from the timing
-    records under ``results``: the same step on another task or run, else the mean of its kind) and,
-    for a training under way, how far it has got; then the work left in all and at ``jobs``."""
+    """List the steps, each done / skip / todo; a todo step with its expected time (a training under
+    way: its own pace to its cap; else the timing records under ``results``: the same step on another
+    task or run, else the mean of its kind) and, for a training under way, how far it has got; then
+    the work left in all and at ``jobs``."""
     from readjax import scheduler
 
     total, priced = 0.0, True
@@ -134,7 +135,7 @@ def dry_run(steps, prior, jobs: int, results) -> None:
         print(f"to run: {todo} steps, about {scheduler.hms(total)} of work ({scheduler.hms(total / jobs)} at "
               f"--jobs {jobs}), priced from the timing records under {results}: the same step on another "
               f"task, else the mean of its kind (rough for a training of a recipe not timed yet); a training "
-              f"under way is priced whole")
+              f"under way by its own pace to its step cap (an upper bound under the convergence rule)")
     elif todo:
         print(f"to run: {todo} steps (no timing records under {results} to price them yet)")
 

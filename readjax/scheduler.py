@@ -49,6 +49,9 @@ class Step:
     # run of it adds up to its cost (``record_piece``). A step that starts over does not: its record is
     # its last run's.
     resumes: bool = False
+    # its own estimate of the seconds it has left (a training under way: its pace times the steps to its
+    # cap), None where it has none; the ETA prices the step by it before any other step's time
+    seconds_left: Callable[[], float | None] | None = None
 
     def needed(self) -> bool:
         """Whether this step is wanted and, unless it is a final step, a step that uses its output is
@@ -387,7 +390,15 @@ def _eta(remaining: list[Step], by_label: dict[str, list[float]], by_kind: dict[
 
 def step_cost(step: Step, by_label: dict[str, list[float]], by_kind: dict[str, list[float]],
               prior: dict[str, dict[str, list[float]]] | None = None) -> float | None:
-    """One step's expected seconds, as :func:`_eta` prices it; None before anything is known."""
+    """One step's expected seconds, as :func:`_eta` prices it (its own ``seconds_left`` where it has
+    one); None before anything is known."""
+    if step.seconds_left is not None:
+        try:
+            own = step.seconds_left()
+        except (OSError, ValueError, KeyError):  # a record half-written: price it as a step not begun
+            own = None
+        if own is not None:
+            return own
     prior = prior or {"label": {}, "kind": {}}
     mean = lambda v: sum(v) / len(v)  # noqa: E731
     for table, key in ((by_label, step.label), (prior["label"], step.label), (by_kind, step.kind),
