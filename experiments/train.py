@@ -59,7 +59,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax import config, methods, tasks
+    from readjax import config, methods, stage_folder, tasks
 
     task = tasks.canonical_name(args.task)
     configs = config.override(config.presets(args.preset), args.set)
@@ -82,14 +82,13 @@ def main(argv=None) -> None:
                                             progress=not args.quiet, **shared)
     summary = {"run": str(run_dir), "task": task, "episodes": spec["episodes"]}
     for stage in stages:
-        f = run_dir / stage / "metrics.jsonl"
-        if f.exists():
-            last = [json.loads(ln) for ln in f.read_text().splitlines() if ln.strip()][-1]
-            summary[f"{stage}_final_loss"] = round(last["loss"], 5)
-            summary[f"{stage}_steps"] = last["step"]
-        stop = run_dir / stage / "stop.json"
-        if stop.exists():
-            summary[f"{stage}_stopped"] = json.loads(stop.read_text())["reason"]
+        rows = stage_folder.read_metrics(run_dir / stage)
+        if rows:
+            summary[f"{stage}_final_loss"] = round(rows[-1]["loss"], 5)
+            summary[f"{stage}_steps"] = rows[-1]["step"]
+        stop = stage_folder.read_stop(run_dir / stage)
+        if stop is not None:
+            summary[f"{stage}_stopped"] = stop["reason"]
     print(json.dumps(summary))
 
 

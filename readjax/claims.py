@@ -25,6 +25,7 @@ from readjax import tasks
 from readjax.config import preset
 from readjax.paired import counts, paired_outcomes
 from readjax.result_record import eval_config_of, is_eval, protocol, training_stops
+from readjax.stage_folder import LOSS_CURVE
 
 ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l")  # each a method's name
 TOP_N = 100  # READ's N in the paper's tables (Table 7, setting A)
@@ -146,7 +147,7 @@ def training_lines(results: list[dict], runs: dict[str, str], doc_dir: Path | No
             r = picked[task]
             for stage, steps, why in training_stops(r):
                 cell = f"{tasks.code_of(task)} {steps}"
-                curve = Path(r["_file"]).parent.parent / "training" / stage / "loss.png"
+                curve = Path(r["_file"]).parent.parent / "training" / stage / LOSS_CURVE
                 if curve.exists():
                     cell = f"[{cell}]({os.path.relpath(curve, doc_dir) if doc_dir is not None else curve})"
                 groups.setdefault((role, stage, why), []).append(cell)

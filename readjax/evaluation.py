@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from readjax import failure_modes, provenance, tables, tasks, training, viz
+from readjax import failure_modes, provenance, stage_folder, tables, tasks, viz
 from readjax import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
@@ -97,7 +97,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None, "rounds": rounds,
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
-        "training": training.stage_records(planner.run_dir),  # per stage: steps and why it stopped
+        "training": stage_folder.stage_records(planner.run_dir),  # per stage: steps and why it stopped
         # which data: the test split as stored (experiments.verify records the same hash) and the
         # training set the run learnt from; a table row is only comparable to rows on the same test split
         "test_fingerprint": test_ds.fingerprint, "train_fingerprint": planner.spec.get("dataset_fingerprint"),

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from readjax import methods, result_record, tasks, verification
+from readjax import methods, result_record, stage_folder, tasks, verification
 from readjax.scheduler import TIMING_FILE, PipelineError, Step
 
 
@@ -342,16 +342,16 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                 if source not in shared:
                     shared[source] = Step("train", task, f"train {source} (autoencoder only)",
                                           train_argv(cfg, task, source, python) + ["--stage", "vae"],
-                                          made=(source_run / "vae" / "stop.json").exists,
+                                          made=lambda r=source_run: stage_folder.is_finished(r / "vae"),
                                           needs=list(prepare), resumes=True,
-                                          seconds_left=lambda r=source_run: training_seconds_left(r, ("vae",)))
+                                          seconds_left=lambda r=source_run: stage_folder.seconds_left(r, ("vae",)))
                     steps.append(shared[source])
                     if source in trains:  # never two trainings of one autoencoder at once (jobs > 1)
                         trains[source].needs.append(shared[source])
             train = Step("train", task, f"train {label}", argv, made=marker.exists,
                          after=lambda marker=marker, run=run: _trained(marker, run, results),
-                         progress=lambda run=run: training_progress(run), resumes=True,
-                         seconds_left=lambda run=run, st=methods.stages(method): training_seconds_left(run, st),
+                         progress=lambda run=run: stage_folder.progress(run), resumes=True,
+                         seconds_left=lambda run=run, st=methods.stages(method): stage_folder.seconds_left(run, st),
                          needs=list(prepare))  # nothing trains before its task's replay holds
             trains[label] = train
             if label in shared:
@@ -385,60 +385,6 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
         for u in s.users:  # what uses a step's output starts after it
             u.needs.append(s)
     return steps
-
-
-def training_progress(run: Path) -> str:
-    """A training step's progress from its run folder, e.g. ``vae done, read 2250/5000``: each stage
-    finished, or its last logged step against its step cap (a stage under the convergence rule may
-    stop before the cap); "" before any stage has logged a step."""
-    from readjax import training
-
-    parts = []
-    records = training.stage_records(run)
-    for stage, rec in sorted(records.items(), key=lambda kv: (kv[1]["stop"] is None, kv[0])):  # finished first
-        if rec["stop"] is not None:
-            parts.append(f"{stage} done")
-            continue
-        try:
-            train = json.loads((run / stage / "stage.json").read_text())["config"]["train"]
-            cap = train["vae_steps" if stage == "vae" else "steps"]
-        except (OSError, KeyError, ValueError):
-            cap = None
-        parts.append(f"{stage} {rec['steps']}/{cap}" if cap else f"{stage} {rec['steps']}")
-    return ", ".join(parts)  # "": no stage has logged a step yet
-
-
-PACE_ROWS = 10  # the last logged steps of a training's current run that give its pace
-
-
-def training_seconds_left(run: Path, stages: tuple[str, ...]) -> float | None:
-    """A training under way priced by its own pace: per unfinished stage, the steps left to its cap
-    times its seconds per step over the last ``PACE_ROWS`` logged steps of its current run
-    (``metrics.jsonl``; its clock restarts with each run, so the window stays within one; validation
-    included, compilation not). None when a stage has no pace yet (not started, or one row into a run):
-    the caller prices the step whole. A stage under the convergence rule may stop before its cap, so this
-    is an upper bound."""
-    left = 0.0
-    for stage in stages:
-        d = run / stage
-        if (d / "stop.json").exists():
-            continue
-        try:
-            rows = [json.loads(ln) for ln in (d / "metrics.jsonl").read_text().splitlines() if ln.strip()]
-            train = json.loads((d / "stage.json").read_text())["config"]["train"]
-        except (OSError, KeyError, ValueError):
-            return None
-        cap = train["vae_steps" if stage == "vae" else "steps"]
-        window = [rows[-1]]
-        for r in reversed(rows[:-1]):
-            if len(window) == PACE_ROWS or r["time_s"] >= window[-1]["time_s"]:  # the window's start, or an earlier run
-                break
-            window.append(r)
-        if len(window) < 2:
-            return None
-        pace = (window[0]["time_s"] - window[-1]["time_s"]) / (window[0]["step"] - window[-1]["step"])
-        left += max(cap - rows[-1]["step"], 0) * pace
-    return left
 
 
 def _trained(marker: Path, run: Path, results: Path) -> None:
@@ -526,14 +472,15 @@ def copy_results(run: Path, results: Path) -> None:
     copy_training_records(run, results)
 
 
-TRAINING_RECORDS = ("stop.json", "loss.png")  # why and when a stage stopped; its loss curve with the stop marked
+# why and when a stage stopped; its loss curve with the stop marked
+TRAINING_RECORDS = (stage_folder.STOP_FILE, stage_folder.LOSS_CURVE)
 
 
 def copy_training_records(run: Path, results: Path) -> None:
     """Mirror each finished stage's ``stop.json`` and loss curve into
     results/<task>/<run>/training/<stage>/ (small, committed): a baseline row is claimed converged,
     and its curve is the evidence, which must outlive the machine the checkpoints are on."""
-    for stop in sorted(run.glob("*/stop.json")):
+    for stop in sorted(run.glob(f"*/{stage_folder.STOP_FILE}")):
         dest = results / run.parent.name / run.name / "training" / stop.parent.name
         dest.mkdir(parents=True, exist_ok=True)
         for name in TRAINING_RECORDS:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from readjax import _runtime, config, evaluation, methods, result_record, tasks
+from readjax import _runtime, config, evaluation, methods, result_record, stage_folder, tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.paired import discordant
@@ -196,7 +196,7 @@ def check_reference_run(run: Path, task: str, model: str, configs: dict) -> None
     if differ:
         raise ValueError(f"--reference-run {run} was trained otherwise than this sweep's setting A: "
                          f"{', '.join(differ)} differ (same --preset and --set?)")
-    unfinished = [s for s in methods.stages(model) if not (run / s / "stop.json").exists()]
+    unfinished = [s for s in methods.stages(model) if not stage_folder.is_finished(run / s)]
     if unfinished:
         raise ValueError(f"--reference-run {run}: stage(s) {', '.join(unfinished)} not trained")
 

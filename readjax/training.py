@@ -24,7 +24,7 @@ import orbax.checkpoint as ocp
 from flax import struct
 from tqdm.auto import tqdm
 
-from readjax import provenance, sharding
+from readjax import provenance, sharding, stage_folder
 from readjax.config import field_defaults, without_inference_only
 
 
@@ -153,10 +153,10 @@ def check_shareable_stage(source_run: str | Path, name: str, config: dict, finge
     ``config`` on the dataset ``fingerprint`` (what :func:`copy_finished_stage` may copy). Writes
     nothing: callers run it before they create a run folder, so a refusal leaves no trace."""
     src = Path(source_run) / name
-    if not (src / "stage.json").exists() or not (src / "stop.json").exists():
+    if not (src / stage_folder.STAGE_FILE).exists() or not stage_folder.is_finished(src):
         raise CheckpointError(f"{src} is not a finished {name!r} stage (no stage.json / stop.json); "
                               "train it first or drop the option")
-    why = identity_mismatch(src / "stage.json", config, fingerprint)
+    why = identity_mismatch(src / stage_folder.STAGE_FILE, config, fingerprint)
     if why:
         raise CheckpointError(f"{src} cannot be shared: it {why}")
 
@@ -179,7 +179,7 @@ def copy_finished_stage(source_run: str | Path, run_dir: str | Path, name: str, 
 
 
 class Stage:
-    """One training stage in ``run_dir/<name>/``: checkpoints/, metrics.jsonl, loss.png, stage.json."""
+    """One training stage in ``run_dir/<name>/`` (its files: :mod:`readjax.stage_folder`)."""
 
     def __init__(self, run_dir: str | Path, name: str, spec: StageSpec, config: dict, fingerprint: str):
         self.dir = Path(run_dir) / name
@@ -197,7 +197,7 @@ class Stage:
     # -------------------------------------------------------------- identity
     def _check_identity(self) -> None:
         """Refuse to resume a stage trained on another dataset or config (nothing is touched)."""
-        f = self.dir / "stage.json"
+        f = self.dir / stage_folder.STAGE_FILE
         meta = {"stage": self.name, "config": self.config, "dataset_fingerprint": self.fingerprint}
         if f.exists():
             why = identity_mismatch(f, self.config, self.fingerprint)
@@ -231,8 +231,7 @@ class Stage:
     # -------------------------------------------------------------- training
     def stop_record(self) -> dict | None:
         """Why and when this stage finished (``stop.json``), or None while it has not."""
-        f = self.dir / "stop.json"
-        return json.loads(f.read_text()) if f.exists() else None
+        return stage_folder.read_stop(self.dir)
 
     def fit(self, params, loss_fn: Callable, sample_batch: Callable[[int], Any], progress: bool = True,
             stop_at: int | None = None, val_batches: list | None = None) -> TrainState:
@@ -260,7 +259,7 @@ class Stage:
         val_loss = make_val_loss(loss_fn, val_batches, spec.seed) if val_batches else None
         end = spec.steps if stop_at is None else min(stop_at, spec.steps)
         bar = _bar(progress, self.name, spec.steps, start)
-        log = open(self.dir / "metrics.jsonl", "a")
+        log = open(self.dir / stage_folder.METRICS_FILE, "a")
         t0, acc, stop = time.time(), [], None
         try:
             for step in range(start, end):
@@ -294,66 +293,23 @@ class Stage:
                 best_step, best = min(history, key=lambda h: h[1])
                 stop.update(best_val_loss=best, best_step=best_step)
         if stop is not None:
-            (self.dir / "stop.json").write_text(json.dumps(stop, indent=2))
+            (self.dir / stage_folder.STOP_FILE).write_text(json.dumps(stop, indent=2))
         self.plot()
         return state
 
     def _truncate_metrics(self, step: int) -> None:
         """Drop log lines past the checkpoint we resume from (they will be recomputed)."""
-        f = self.dir / "metrics.jsonl"
+        f = self.dir / stage_folder.METRICS_FILE
         if not f.exists():
             return
         keep = [ln for ln in f.read_text().splitlines() if ln.strip() and json.loads(ln)["step"] <= step]
         f.write_text("".join(ln + "\n" for ln in keep))
 
     def metrics(self) -> list[dict]:
-        f = self.dir / "metrics.jsonl"
-        return [json.loads(ln) for ln in f.read_text().splitlines() if ln.strip()] if f.exists() else []
+        return stage_folder.read_metrics(self.dir)
 
     def plot(self) -> Path | None:
-        rows = self.metrics()
-        if not rows:
-            return None
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        keys = [k for k in rows[0] if k not in ("step", "time_s", "grad_norm", "val_loss")]
-        fig, ax = plt.subplots(figsize=(6, 3.5))
-        steps = [r["step"] for r in rows]
-        for k in keys:
-            ax.plot(steps, [r[k] for r in rows], label=k, lw=1.2 if k == "loss" else 0.8)
-        val = [(r["step"], r["val_loss"]) for r in rows if "val_loss" in r]
-        if val:
-            ax.plot(*zip(*val), "k.-", label="val_loss (held out)", lw=1.2, ms=3)
-        stop = self.stop_record()
-        if stop is not None:
-            ax.axvline(stop["stopped_at"], color="r", ls="--", lw=1,
-                       label=f"stop at {stop['stopped_at']}: {stop['reason']}")
-        ax.set_yscale("log")
-        ax.set_xlabel("step")
-        ax.set_title(f"{self.name} training losses")
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        out = self.dir / "loss.png"
-        fig.savefig(out, dpi=110)
-        plt.close(fig)
-        return out
-
-
-def stage_records(run_dir: str | Path) -> dict[str, dict]:
-    """Per stage of a run folder (each ``<stage>/stage.json``): the last logged step and, once the
-    stage finished, why (``stop.json``: converged or the step cap; None before it finished or for a
-    stage trained before the record existed). Evaluations carry it, so a result says how long its
-    model trained and whether it had converged."""
-    out = {}
-    for f in sorted(Path(run_dir).glob("*/stage.json")):
-        metrics, stop = f.parent / "metrics.jsonl", f.parent / "stop.json"
-        rows = [ln for ln in metrics.read_text().splitlines() if ln.strip()] if metrics.exists() else []
-        out[f.parent.name] = {"steps": json.loads(rows[-1])["step"] if rows else 0,
-                              "stop": json.loads(stop.read_text()) if stop.exists() else None}
-    return out
+        return stage_folder.plot_losses(self.dir, f"{self.name} training losses")
 
 
 def make_val_loss(loss_fn: Callable, batches: list, seed: int) -> Callable[[Any], float]:

@@ -11,7 +11,7 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import config, cost_table, methods, pipeline, scheduler, verification
+from readjax import config, cost_table, methods, pipeline, scheduler, stage_folder, verification
 
 
 def _cfg(tmp_path, **kw):
@@ -591,14 +591,11 @@ def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
     (run / "vae" / "metrics.jsonl").write_text('{"step": 3000}\n')
     (run / "vae" / "stop.json").write_text('{"reason": "step cap"}')
     (run / "read" / "stage.json").write_text(stage(3000, 5000))
-    assert pipeline.training_progress(run) == "vae done, read 0/5000"
     (run / "read" / "metrics.jsonl").write_text('{"step": 25}\n{"step": 2250}\n')
-    assert pipeline.training_progress(run) == "vae done, read 2250/5000"
-    assert pipeline.training_progress(tmp_path / "nothing yet") == ""
 
     done: set = set()
     steps = [scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: "x" in done,
-                            progress=lambda: pipeline.training_progress(run)),
+                            progress=lambda: stage_folder.progress(run)),
              scheduler.Step("evaluate", "push_button", "evaluate read --N 100", ["y"], made=lambda: "y" in done)]
     start = lambda argv, path: _FakeProc(0, 3, lambda: done.add(argv[0]))  # noqa: E731
     lines = []
@@ -610,27 +607,3 @@ def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
     quiet = []
     scheduler.run_steps(steps, log=quiet.append, jobs=2, start=start, poll=0)
     assert not any(ln.startswith("running") for ln in quiet)  # the default: every 10 minutes
-
-
-def test_a_training_under_way_is_priced_by_its_own_pace(tmp_path):
-    """The steps left to the cap times the seconds per step of the current run's last logged steps (the
-    clock restarts with a resumed run; a finished stage costs nothing); no pace yet: priced whole."""
-    run = tmp_path / "runs" / "reach_target" / "read"
-    for stage in ("vae", "read"):
-        (run / stage).mkdir(parents=True)
-        (run / stage / "stage.json").write_text(json.dumps({"config": {"train": {"vae_steps": 3000, "steps": 5000}}}))
-    (run / "vae" / "stop.json").write_text('{"reason": "step cap"}')
-    assert pipeline.training_seconds_left(run, ("vae", "read")) is None  # read has not logged a step
-    first_run = [{"step": 25 * k, "time_s": 10.0 * k} for k in range(1, 41)]  # 0.4 s per step until 1000
-    second_run = [{"step": 1000 + 25 * k, "time_s": 30.0 + 5.0 * k} for k in range(1, 3)]  # resumed: 0.2 s per step
-    (run / "read" / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in first_run + second_run[:1]))
-    assert pipeline.training_seconds_left(run, ("vae", "read")) is None  # one row into the resumed run
-    (run / "read" / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in first_run + second_run))
-    assert pipeline.training_seconds_left(run, ("vae", "read")) == pytest.approx((5000 - 1050) * 0.2)
-    step = scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: False,
-                          seconds_left=lambda: pipeline.training_seconds_left(run, ("vae", "read")))
-    prior = {"label": {"train read": [2100.0]}, "kind": {"train": [2100.0]}}
-    assert scheduler.step_cost(step, {}, {}, prior) == pytest.approx(790.0)  # its own pace before the others'
-    assert scheduler.step_cost(scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: False),
-                               {}, {}, prior) == 2100.0
-    assert pipeline.training_seconds_left(tmp_path / "nothing yet", ("vae", "read")) is None
