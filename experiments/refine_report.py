@@ -12,6 +12,7 @@ examples:
   python -m experiments.refine_report --run runs/reach_target/read --data data/
   python -m experiments.refine_report --run runs/RT/read --refine cold --images 32 --N 0 1 10
   python -m experiments.refine_report --run runs/RT/read --out results/reach_target/read/refine_cold.json --refine cold
+  python -m experiments.refine_report --run runs/RT/read --retrieval cheat --rank 500 --N 0 100  # Table 8's start
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--retrieval", default="spe", choices=("spe", "cheat"),
                    help="where refinement starts: SPE retrieval (the planner's) or the oracle's nearest "
                         "neighbour of the ground truth (Tables 4-5: refinement from the best start)")
+    p.add_argument("--rank", type=_cli.positive_int, default=1,
+                   help="with --retrieval cheat: start from the oracle's RANK-th nearest demonstration (1: the "
+                        "best start, Tables 4-5; 500: a poor one, Table 8)")
     p.add_argument("--rounds", type=_cli.positive_int, default=None,
                    help="refinements of N steps in a row, each from the previous one's plan (default: the "
                         "run's sde.rounds, 2 in the cpu preset)")
@@ -55,6 +59,8 @@ def main(argv=None) -> None:
     from readjax.methods.base import read_run
     from readjax.planner import Planner
 
+    if args.rank > 1 and args.retrieval != "cheat":
+        raise ValueError(f"--rank {args.rank} needs --retrieval cheat (SPE's start has no rank)")
     spec = read_run(args.run)
     root = args.data or spec["data_root"]
     planner = Planner.load(args.run, data_root=root)
@@ -68,9 +74,9 @@ def main(argv=None) -> None:
         splits[name] = (ds.rgbd[:n], ds.motion[:n])
     say = None if args.quiet else (lambda msg: print(f"  {msg}", flush=True))
     result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say,
-                                  retrieval=args.retrieval, rounds=args.rounds)
+                                  retrieval=args.retrieval, rounds=args.rounds, rank=args.rank)
     result.update(run=str(args.run), task=spec["task"], images=args.images)
-    suffix = ("" if args.retrieval == "spe" else f"_{args.retrieval}") + (
+    suffix = ("" if args.retrieval == "spe" else f"_{args.retrieval}" + (f"{args.rank}" if args.rank > 1 else "")) + (
         f"_rounds{result['rounds']}" if result["rounds"] > 1 else "")
     out = Path(args.out) if args.out else Path(args.run) / "diagnostics" / f"refine_{result['update']}{suffix}.json"
     out.parent.mkdir(parents=True, exist_ok=True)

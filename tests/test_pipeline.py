@@ -234,6 +234,15 @@ def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
                                                             test.motion[:4], planner.image_size))
     assert cheat["rows"][1]["split"] == "test"
     assert cheat["rows"][1]["err_cm_median"] == pytest.approx(want["err_cm_median"], abs=1e-6)
+    # from a poorer start (Table 8's protocol): the oracle's 3rd neighbour, each image's error recorded
+    assert _cli.run(refine_report_cli.main, argv + ["--retrieval", "cheat", "--rank", "3", "--N", "0"]) == 0
+    third = json.loads(out.read_text())
+    nearest3 = retrieval.oracle_retrieve(planner.camera, test.motion[:4], planner.database.motion, 3)
+    errs = refine_report.end_errors(planner.camera, planner.database.motion[nearest3], test.motion[:4],
+                                    planner.image_size)["err_cm"]
+    assert third["rank"] == 3 and third["rows"][1]["err_cm"] == pytest.approx(errs, abs=1e-3)
+    assert "the oracle's neighbour 3" in capsys.readouterr().out
+    assert _cli.run(refine_report_cli.main, argv + ["--rank", "3"]) == 2  # SPE's start has no rank
 
 
 def test_planner_api_and_bad_input(run):
