@@ -13,6 +13,8 @@ examples:
   python -m experiments.refine_report --run runs/RT/read --refine cold --images 32 --N 0 1 10
   python -m experiments.refine_report --run runs/RT/read --out results/reach_target/read/refine_cold.json --refine cold
   python -m experiments.refine_report --run runs/RT/read --retrieval cheat --rank 500 --N 0 100  # Table 8's start
+  python -m experiments.refine_report --run runs/RT/read --retrieval cheat --rank 1 10 50 200 500 --N 0 100
+      # how far from the answer refinement can start: end error against start error, and the training pairs' range
 """
 
 from __future__ import annotations
@@ -38,9 +40,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--retrieval", default="spe", choices=("spe", "cheat"),
                    help="where refinement starts: SPE retrieval (the planner's) or the oracle's nearest "
                         "neighbour of the ground truth (Tables 4-5: refinement from the best start)")
-    p.add_argument("--rank", type=_cli.positive_int, default=1,
+    p.add_argument("--rank", type=_cli.positive_int, nargs="+", default=[1],
                    help="with --retrieval cheat: start from the oracle's RANK-th nearest demonstration (1: the "
-                        "best start, Tables 4-5; 500: a poor one, Table 8)")
+                        "best start, Tables 4-5; 500: a poor one, Table 8). Several ranks: each one's report, "
+                        "then the correction range (readjax.correction_range): every plan's end error against "
+                        "its start's, binned, beside the distances READ's training pairs span, with a plot")
     p.add_argument("--rounds", type=_cli.positive_int, default=None,
                    help="refinements of N steps in a row, each from the previous one's plan (default: the "
                         "run's sde.rounds, 2 in the cpu preset)")
@@ -59,8 +63,10 @@ def main(argv=None) -> None:
     from readjax.methods.base import read_run
     from readjax.planner import Planner
 
-    if args.rank > 1 and args.retrieval != "cheat":
-        raise ValueError(f"--rank {args.rank} needs --retrieval cheat (SPE's start has no rank)")
+    if args.rank != [1] and args.retrieval != "cheat":
+        raise ValueError(f"--rank {' '.join(map(str, args.rank))} needs --retrieval cheat (SPE's start has no rank)")
+    if len(args.rank) > 1 and (0 not in args.N or len(args.N) < 2):
+        raise ValueError("several --rank values compare N = 0 (the start) with a larger N: give --N 0 and one more")
     spec = read_run(args.run)
     root = args.data or spec["data_root"]
     planner = Planner.load(args.run, data_root=root)
@@ -73,16 +79,37 @@ def main(argv=None) -> None:
         n = min(args.images, len(ds))
         splits[name] = (ds.rgbd[:n], ds.motion[:n])
     say = None if args.quiet else (lambda msg: print(f"  {msg}", flush=True))
-    result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say,
-                                  retrieval=args.retrieval, rounds=args.rounds, rank=args.rank)
-    result.update(run=str(args.run), task=spec["task"], images=args.images)
-    suffix = ("" if args.retrieval == "spe" else f"_{args.retrieval}" + (f"{args.rank}" if args.rank > 1 else "")) + (
-        f"_rounds{result['rounds']}" if result["rounds"] > 1 else "")
-    out = Path(args.out) if args.out else Path(args.run) / "diagnostics" / f"refine_{result['update']}{suffix}.json"
+    reports = []
+    for rank in args.rank:
+        result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say,
+                                      retrieval=args.retrieval, rounds=args.rounds, rank=rank)
+        result.update(run=str(args.run), task=spec["task"], images=args.images)
+        print(refine_report.format_report(result))
+        reports.append(result)
+    rounds = f"_rounds{result['rounds']}" if result["rounds"] > 1 else ""
+    if len(reports) == 1:
+        suffix = ("" if args.retrieval == "spe" else f"_{args.retrieval}" + (f"{args.rank[0]}" if args.rank[0] > 1 else ""))
+        out = Path(args.out) if args.out else Path(args.run) / "diagnostics" / f"refine_{result['update']}{suffix}{rounds}.json"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(result, indent=2))
+        print(f"results in {out}")
+        return
+    from readjax import correction_range
+
+    train = spec["configs"]["train"]
+    pairs = correction_range.pair_distances(planner.camera, planner.database.motion, train["K"],
+                                            len(planner.database) - train.get("val_episodes", 0))
+    combined = {"run": str(args.run), "task": spec["task"], "images": args.images, "update": result["update"],
+                "rounds": result["rounds"], "split": "test", "reports": reports, "training_pairs": pairs,
+                "by_rank": correction_range.by_rank(reports), "by_start": correction_range.by_start(reports)}
+    ranks = "-".join(map(str, sorted(args.rank)))
+    out = Path(args.out) if args.out else (Path(args.run) / "diagnostics" /
+                                           f"correction_range_{result['update']}{rounds}_ranks{ranks}.json")
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2))
-    print(refine_report.format_report(result))
-    print(f"results in {out}")
+    out.write_text(json.dumps(combined) + "\n")  # every report with each image's errors: compact
+    correction_range.plot(reports, out.with_suffix(".png"), pairs=pairs)
+    print("\n".join(correction_range.format_lines(combined)))
+    print(f"results in {out} (plot {out.with_suffix('.png')})")
 
 
 if __name__ == "__main__":

@@ -243,6 +243,15 @@ def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
     assert third["rank"] == 3 and third["rows"][1]["err_cm"] == pytest.approx(errs, abs=1e-3)
     assert "the oracle's neighbour 3" in capsys.readouterr().out
     assert _cli.run(refine_report_cli.main, argv + ["--rank", "3"]) == 2  # SPE's start has no rank
+    # several starts: each one's report, then where refinement stops correcting, with a plot
+    ranges = tmp_path / "range.json"
+    several = argv[:-3] + ["--out", str(ranges), "--quiet", "--retrieval", "cheat", "--rank", "1", "3", "--N", "0", "1"]
+    assert _cli.run(refine_report_cli.main, several) == 0
+    combined = json.loads(ranges.read_text())
+    assert [r["rank"] for r in combined["by_rank"]] == [1, 3] and combined["reports"][1]["rank"] == 3
+    assert sum(b["plans"] for b in combined["by_start"]) == 8 and combined["training_pairs"]["max_cm"] > 0
+    assert ranges.with_suffix(".png").exists() and "training pairs" in capsys.readouterr().out
+    assert _cli.run(refine_report_cli.main, several[:-3] + ["--N", "1", "3"]) == 2  # no N = 0 to compare with
 
 
 def test_planner_api_and_bad_input(run):
