@@ -2,10 +2,10 @@
 
 From ``refine_report`` runs started at the oracle's i-th nearest demonstration for several i (Table 8's
 protocol, i = 500 a poor start), each plan's 3D end error at the start (N = 0) and after the largest N,
-pooled over the ranks and binned by the start's error: where refinement stops correcting. Beside it the
-distances READ trained to correct: each training demo against the K nearest demos it is paired with
-(``retrieval.training_pairs``). A denoiser trained on those pairs has seen corrections up to their range;
-a start farther off is outside what it learnt. No simulator in the loop."""
+pooled over the ranks and binned by the start's error: where refinement stops correcting. Beside it, for
+comparison, the distances READ trained to correct: each training demo against the K nearest demos it is
+paired with (``retrieval.training_pairs``). (On RT and PB the edge lies near 16 cm on both, while their
+training pairs reach 18 and 10 cm: BENCHMARKS.md 18.) No simulator in the loop."""
 
 from __future__ import annotations
 
