@@ -82,7 +82,8 @@ def main(argv=None) -> None:
     reports = []
     for rank in args.rank:
         result = refine_report.report(planner, splits, ns=tuple(args.N), batch_size=args.batch_size, progress=say,
-                                      retrieval=args.retrieval, rounds=args.rounds, rank=rank)
+                                      retrieval=args.retrieval, rounds=args.rounds, rank=rank,
+                                      clean_input=rank == args.rank[0])  # it does not depend on the start
         result.update(run=str(args.run), task=spec["task"], images=args.images)
         print(refine_report.format_report(result))
         reports.append(result)

@@ -111,12 +111,14 @@ def require_read(planner) -> None:
 
 def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT_NS, seed: int = 0,
            batch_size: int = 50, progress=None, retrieval: str = "spe", rounds: int | None = None,
-           rank: int = 1) -> dict:
+           rank: int = 1, clean_input: bool = True) -> dict:
     """``splits``: name -> (images at the planner's size, ground-truth motions). Returns rows
     (split, N, errors: medians, and each image's 3D end error in ``err_cm``), plus per-step drift and
     end-depth error along the largest N. ``retrieval``: where refinement starts, "spe" (the
     planner's) or "cheat" (the oracle's ``rank``-th neighbour: Tables 4-5 and 8). ``rounds``:
-    refinements of N steps in a row (None: the run's, ``Planner.default_rounds``)."""
+    refinements of N steps in a row (None: the run's, ``Planner.default_rounds``). ``clean_input``:
+    also the denoiser once on the autoencoded ground truth (the same for every start: one report of
+    several needs it)."""
     if rank < 1 or (rank > 1 and retrieval != "cheat"):
         raise ValueError(f"rank {rank}: the oracle's neighbours are ranked from 1, and only with retrieval 'cheat'")
     rounds = planner.default_rounds if rounds is None else rounds
@@ -142,7 +144,8 @@ def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT
                 drift = np.abs(np.diff(hist, axis=0)).mean(axis=(1, 2, 3))  # (N - 1,)
                 depth = np.abs(hist[:, :, -1, 2] - gt[None, :, -1, 2]).mean(axis=1) * 1000  # (N,)
                 loops[split] = {"N": n, "drift_mean_abs": drift.tolist(), "end_depth_err_mm_mean": depth.tolist()}
-        clean[split] = clean_input_errors(planner, images, gt, batch_size=batch_size)
+        if clean_input:
+            clean[split] = clean_input_errors(planner, images, gt, batch_size=batch_size)
     return {"rows": rows, "loops": loops, "clean_input": clean, "update": planner.model.configs["sde"].update,
             "retrieval": retrieval, "rank": rank, "rounds": rounds}
 

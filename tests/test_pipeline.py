@@ -249,6 +249,7 @@ def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
     assert _cli.run(refine_report_cli.main, several) == 0
     combined = json.loads(ranges.read_text())
     assert [r["rank"] for r in combined["by_rank"]] == [1, 3] and combined["reports"][1]["rank"] == 3
+    assert combined["reports"][0]["clean_input"] and not combined["reports"][1]["clean_input"]  # computed once
     assert sum(b["plans"] for b in combined["by_start"]) == 8 and combined["training_pairs"]["max_cm"] > 0
     assert ranges.with_suffix(".png").exists() and "training pairs" in capsys.readouterr().out
     assert _cli.run(refine_report_cli.main, several[:-3] + ["--N", "1", "3"]) == 2  # no N = 0 to compare with
