@@ -115,11 +115,12 @@ def dry_run(steps, prior, jobs: int, results) -> None:
     the work left in all and at ``jobs``."""
     from readjax import scheduler
 
-    total, priced = 0.0, True
+    total, priced, todo = 0.0, True, 0
     for s in steps:
         status = s.status()
         line = f"{status}  {s.task}: {s.label}"
         if status == "todo":
+            todo += 1
             cost = scheduler.step_cost(s, {}, {}, prior)
             priced &= cost is not None
             total += cost or 0.0
@@ -130,7 +131,6 @@ def dry_run(steps, prior, jobs: int, results) -> None:
         print(line)
     print("(skip: not needed here: everything that would use its output is finished, or its condition "
           "does not hold)")
-    todo = sum(s.status() == "todo" for s in steps)
     if todo and priced:
         print(f"to run: {todo} steps, about {scheduler.hms(total)} of work ({scheduler.hms(total / jobs)} at "
               f"--jobs {jobs}), priced from the timing records under {results}: the same step on another "

@@ -60,7 +60,7 @@ def main(argv=None) -> None:
         raise ValueError(f"--N values must be >= 0, got {args.N}")
     from readjax import refine_report
     from readjax.data import store
-    from readjax.methods.base import read_run
+    from readjax.methods.base import read_run, train_size
     from readjax.planner import Planner
 
     if args.rank != [1] and args.retrieval != "cheat":
@@ -97,9 +97,9 @@ def main(argv=None) -> None:
         return
     from readjax import correction_range
 
-    train = spec["configs"]["train"]
-    pairs = correction_range.pair_distances(planner.camera, planner.database.motion, train["K"],
-                                            len(planner.database) - train.get("val_episodes", 0))
+    train = planner.model.configs["train"]  # the pairs it trained on: among the demos not held out
+    pairs = correction_range.pair_distances(planner.camera, planner.database.motion, train.K,
+                                            train_size(len(planner.database), train))
     combined = {"run": str(args.run), "task": spec["task"], "images": args.images, "update": result["update"],
                 "rounds": result["rounds"], "split": "test", "reports": reports, "training_pairs": pairs,
                 "by_rank": correction_range.by_rank(reports), "by_start": correction_range.by_start(reports)}

@@ -86,8 +86,7 @@ def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: f
     run's own heartbeat piece from them."""
     if step.timing is None:
         return
-    f = step.timing
-    record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
+    record = _read_timing(step)
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
              "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
     earlier = record.get(UNFINISHED, {}).pop(step.label, {})
@@ -104,8 +103,18 @@ def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: f
         record.setdefault("repeats", {}).setdefault(step.label, []).append(entry)
     else:
         record["steps"][step.label] = entry
-    f.parent.mkdir(parents=True, exist_ok=True)
-    f.write_text(json.dumps(record, indent=2))
+    _write_timing(step, record)
+
+
+def _read_timing(step: Step) -> dict:
+    """The step's task's timing file (an empty record before its first step)."""
+    f = step.timing
+    return json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
+
+
+def _write_timing(step: Step, record: dict) -> None:
+    step.timing.parent.mkdir(parents=True, exist_ok=True)
+    step.timing.write_text(json.dumps(record, indent=2))
 
 
 UNFINISHED = "unfinished"  # the timing file's pieces of steps that have not finished yet
@@ -124,14 +133,12 @@ def record_piece(step: Step, started: float, seconds: float, cpu_seconds: float 
     the grid dies without a word (``kill -9``, a machine gone)."""
     if step.timing is None or not step.resumes:
         return
-    f = step.timing
-    record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
+    record = _read_timing(step)
     piece = {"seconds": round(seconds, 1), "kind": step.kind}
     if cpu_seconds:
         piece["cpu_seconds"] = round(cpu_seconds, 1)
     record.setdefault(UNFINISHED, {}).setdefault(step.label, {})[_piece_key(started)] = piece
-    f.parent.mkdir(parents=True, exist_ok=True)
-    f.write_text(json.dumps(record, indent=2))
+    _write_timing(step, record)
 
 
 def _process_cpu(proc) -> float | None:
