@@ -119,7 +119,11 @@ def is_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None,
     if refinement is not None:
         return (update, rounds) == tuple(refinement)
     sde = _run_sde(r)
-    return (update, rounds) == ((sde.get("update"), sde.get("rounds", 1)) if update is not None else (None, 1))
+    if update is not None:
+        return (update, rounds) == (sde.get("update"), sde.get("rounds", 1))
+    # no READ update: a method whose run has an SDE (READ-O) refines its run's sde.rounds times, as
+    # the planner does by default; one without (the baselines) once
+    return rounds == (sde.get("rounds", 1) if (r.get("configs") or {}).get("sde") is not None else 1)
 
 
 def is_default_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None,

@@ -42,6 +42,13 @@ def test_the_default_evaluation_of_other_methods():
               "eval_config": {"episodes": 100, "N": None, "retrieval": "spe", "rank": 1, "candidates": 1,
                               "rounds": 1, "refine_update": None}, "configs": {"train": {}}}
     assert is_default_eval(direct, "deterministic", None)
+    # READ-O has READ's SDE but not its update: its default evaluation runs its run's sde.rounds
+    read_o = {"method": "read_o", "name": "x",
+              "eval_config": {"episodes": 100, "N": 100, "retrieval": "spe", "rank": 1, "candidates": 1,
+                              "rounds": 2, "refine_update": None}, "configs": {"sde": {"update": "cold_anchor", "rounds": 2}}}
+    assert is_default_eval(read_o, "read_o", 100)
+    assert not is_default_eval({**read_o, "eval_config": {**read_o["eval_config"], "rounds": 1}}, "read_o", 100)
+    assert not is_default_eval({**direct, "eval_config": {**direct["eval_config"], "rounds": 2}}, "deterministic", None)
     assert not is_default_eval(direct, "deterministic", 100)
     # an iterative method run with no --N records the planner's default N
     vpsde = {"method": "vpsde", "eval_config": {**direct["eval_config"], "N": DEFAULT_N},
