@@ -243,14 +243,25 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+# why a step that exited 0 may still not count as done, by kind (what ``Step.made`` checks)
+MISSING = {
+    "generate": "the split holds fewer kept episodes than asked",
+    "verify": "the ground truth did not replay at 100 %",
+    "train": "its finished marker was not written",
+    "evaluate": "no record under results/ is the evaluation asked for: its method, N, start, images and "
+                "refinement (update, rounds) on a test split whose replay is on record at 100 %; check "
+                "result_record.is_eval against the record the log names",
+    "media": "no rollout video was published",
+}
+
+
 def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: dict,
             cpu_seconds: float | None = None) -> None:
     """A step's command exited 0: publish its output (``after``), check it is there, record its time."""
     step.after()
     if not step.made():
         record_piece(step, t0, time.time() - t0, cpu_seconds)
-        raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there (for verify: the "
-                            f"ground truth did not replay at 100 %)")
+        raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there ({MISSING.get(step.kind, 'its output check failed')})")
     seconds = time.time() - t0
     by_kind.setdefault(step.kind, []).append(seconds)
     by_label.setdefault(step.label, []).append(seconds)

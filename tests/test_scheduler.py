@@ -101,3 +101,13 @@ def test_one_job_records_the_piece_of_a_stopped_resumed_step(tmp_path):
     record = json.loads(step.timing.read_text())
     assert record["steps"]["resumed"]["pieces"] == 2 and scheduler.UNFINISHED not in record
     assert record["steps"]["resumed"]["seconds"] >= 0.1 + 0.3
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_step_that_exits_0_without_its_result_stops_the_grid_saying_what_is_missing(tmp_path, jobs):
+    """An evaluation whose record does not match what the step asked for is named as such (not as a
+    failed replay, the verify step's reason)."""
+    step = scheduler.Step("evaluate", "reach_target", "evaluate x", [sys.executable, "-c", "pass"],
+                          made=lambda: False)
+    with pytest.raises(scheduler.PipelineError, match=r"evaluate x` ran but its result is not there \(no record"):
+        scheduler.run_steps([step], jobs=jobs, log_dir=tmp_path / "logs", poll=0.05)
