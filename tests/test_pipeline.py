@@ -199,6 +199,34 @@ def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
     assert sum(c["succeeded"] for b in by.values() for c in b.values()) == sum(result["success"])
 
 
+def test_goal_shift_on_the_trained_run(run, tmp_path, capsys):
+    """The goal-shift diagnostic renders the scenes the test images show (bit for bit up to float
+    rounding), plans from the same oracle start on both images, and finds the goal's move in the
+    image features near the goal and not far from it."""
+    from experiments import goal_shift as goal_shift_cli
+    from readjax import goal_shift
+
+    data, run_dir = run
+    out = tmp_path / "shift.json"
+    argv = ["--run", str(run_dir), "--data", str(data), "--images", "4", "--rank", "1", "3", "--N", "1",
+            "--batch-size", "4", "--out", str(out), "--quiet"]
+    assert _cli.run(goal_shift_cli.main, argv) == 0
+    result = json.loads(out.read_text())
+    assert result["replay_max_abs_diff"] < 1e-4 and result["goal_move_px_median"] > 0.5
+    assert [r["rank"] for r in result["ranks"]] == [1, 3]
+    assert all(len(r["sensitivity"]) == 4 and len(r["start_px"]) == 4 for r in result["ranks"])
+    assert sum(b["n"] for b in result["by_start"]) == 8
+    reach = result["feature_reach"]
+    assert reach[0]["lo"] == 0 and reach[0]["median"] > 10 * reach[-1]["median"]
+    assert out.with_suffix(".png").exists() and "| i = 3 |" in capsys.readouterr().out
+    # the same image twice: nothing changes anywhere
+    planner = Planner.load(run_dir, data)
+    test = store.load_dataset(data / "reach_target" / "test").resized(planner.image_size)
+    uv = test.motion[:, -1, :2]
+    assert all(b["median"] == 0 for b in goal_shift.feature_reach(planner, test.rgbd, test.rgbd, uv, uv))
+    assert _cli.run(goal_shift_cli.main, argv + ["--shift-cm", "0"]) == 2
+
+
 def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
     from experiments import refine_report as refine_report_cli
 

@@ -129,6 +129,18 @@ class TaskEnv:
         is nearest (:mod:`readjax.failure_modes`). Empty for tasks that define none."""
         return {}
 
+    def goal(self, scene: Scene) -> jax.Array | None:
+        """The world point (..., 3) a plan must reach, for tasks with one goal object that a scene
+        places freely (RT's sphere, PB's button); None elsewhere. With :meth:`move_goal`, what
+        :mod:`readjax.goal_shift` moves to ask whether a planner reads the goal from the image."""
+        return None
+
+    def move_goal(self, scene: Scene, delta) -> Scene:
+        """The same scene (leaves (..., ...), one or a batch) with the goal object moved by ``delta``
+        (3,) or (B, 3) metres in the world; everything else where it was."""
+        raise ValueError(f"{self.name} defines no single goal object to move (tasks that do: those whose "
+                         f"env implements goal / move_goal, e.g. reach_target, push_button)")
+
     # ------------------------------------------------------------------ helpers for tasks
     @property
     def control_dt(self) -> float:

@@ -46,5 +46,14 @@ class PushButton(TaskEnv):
         quat = jnp.stack([down_quat(0.0)] * 4)
         return WaypointPlan(pos=pos, quat=quat, grip=jnp.zeros(4))
 
+    def goal(self, scene):
+        """The cap's top at rest: the base's origin raised by CAP_TOP."""
+        return scene.qpos[..., self.base_qadr:self.base_qadr + 3] + jnp.array([0.0, 0.0, CAP_TOP])
+
+    def move_goal(self, scene, delta):
+        delta = jnp.asarray(delta, jnp.float32)
+        qpos = jnp.asarray(scene.qpos).at[..., self.base_qadr:self.base_qadr + 3].add(delta)
+        return scene.replace(qpos=qpos, params={**scene.params, "button": scene.params["button"] + delta})
+
     def is_success(self, progress, data, grasp, scene):
         return data.qpos[self.button_qadr] < -PRESSED

@@ -48,6 +48,14 @@ class ReachTarget(TaskEnv):
         return {"target": scene.mocap_pos[self.target_mocap][None],
                 "distractor": scene.mocap_pos[jnp.array(self.distractor_mocap)]}
 
+    def goal(self, scene):
+        return scene.mocap_pos[..., self.target_mocap, :]
+
+    def move_goal(self, scene, delta):
+        delta = jnp.asarray(delta, jnp.float32)
+        mocap = jnp.asarray(scene.mocap_pos).at[..., self.target_mocap, :].add(delta)
+        return scene.replace(mocap_pos=mocap, params={**scene.params, "target": scene.params["target"] + delta})
+
     def is_success(self, progress, data, grasp, scene):
         tip = data.site_xpos[self.tcp_site]
         return jnp.linalg.norm(tip - data.mocap_pos[self.target_mocap]) < RADIUS
