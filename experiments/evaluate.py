@@ -114,9 +114,7 @@ def main(argv=None) -> None:
                                 rounds=args.rounds)
     model = planner.model
     if args.refine is not None:
-        if not hasattr(model, "set_refine_update"):
-            raise ValueError(f"--refine applies to READ only, not to {planner.spec.get('method')}")
-        model.set_refine_update(args.refine)
+        model.set_refine_update(args.refine)  # a method without an update says so
     name = args.name or default_name(args, model.uses_retrieval, model.iterative, planner.n_steps,
                                      evaluation.refine_update(model), planner.default_rounds)
     out = Path(args.out) if args.out else Path(args.run) / "eval"

@@ -143,9 +143,9 @@ def scene_landmarks(env, scenes) -> dict[str, np.ndarray]:
 
 
 def refine_update(model) -> str | None:
-    """READ's inference update (``sde.update``) as the model will run it; None for other methods."""
-    sde = getattr(model, "configs", {}).get("sde")
-    return sde.update if sde is not None and hasattr(model, "set_refine_update") else None
+    """The inference update (``sde.update``) the model will run (READ, READ-L, READ-O with CD); None
+    for other methods."""
+    return getattr(model, "refine_update", None)
 
 
 def replay_ground_truth(env, ds: Dataset, batch_size: int = 32) -> dict:

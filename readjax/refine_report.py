@@ -104,7 +104,7 @@ def clean_input_errors(planner, images: np.ndarray, gt: np.ndarray, ts=CLEAN_TS,
 
 def require_read(planner) -> None:
     """refine_report diagnoses READ's refinement loop; other methods have none."""
-    if not hasattr(planner.model, "set_refine_update"):
+    if planner.spec.get("method") != "read":
         raise ValueError(f"refine_report diagnoses READ's refinement; {planner.run_dir} is a "
                          f"{planner.spec.get('method')} run")
 

@@ -3,8 +3,13 @@
 The forward process is :mod:`readjax.diffusion.irsde` applied to (normalised) task-space motions,
 x_t = x_R + (x0 - x_R) a(t) + lam sqrt(1 - a(t)^2) eps. On the grid t_k = linspace(1, t_end, N + 1):
 
-* ``cold_diffusion`` (CD, predict x0 then re-noise; section 8 without Enc/Dec):
-      x = x_R;  for k: x0_hat = x0_fn(x, t_k);  x = x_R + (x0_hat - x_R) a(t_{k+1}) + lam sqrt(1 - a^2) eps
+* ``cold_diffusion`` (CD, predict x0; READ's refinement, section 8, without Enc/Dec), with the
+  SDE's ``update`` as READ's loop (:mod:`readjax.diffusion.refine`) so an ablation differs from READ
+  only where it says:
+      "renoise" (the paper):  x = x_R;  for k: x0_hat = x0_fn(x, t_k);
+                              x = x_R + (x0_hat - x_R) a(t_{k+1}) + lam sqrt(1 - a^2) eps
+      "cold":                 x <- x + (x0_hat - x_R) (a(t_{k+1}) - a(t_k))   (Bansal et al., Alg. 2)
+      "cold_anchor":          the first step x = x_R + (x0_hat - x_R) a(t_1), then "cold"
       return the last x0_hat                                   (N = 0: x_R)
 * ``reverse_em`` (Euler-Maruyama on the reverse-time SDE with a noise-predicting model):
       dx = [theta(t) (x_R - x) - sigma(t)^2 score] dt + sigma(t) dw_bar,  score = -eps_hat / std(t)
@@ -47,6 +52,21 @@ def cold_diffusion(x0_fn: Callable, key: jax.Array, x_r: jax.Array, cfg: SDEConf
         hist = jnp.zeros((0,) + x_r.shape, x_r.dtype)
         return (x_r, hist) if return_history else x_r
     ts = time_grid(n_steps, t_end)
+
+    if cfg.update in ("cold", "cold_anchor"):
+        anchor = cfg.update == "cold_anchor"
+
+        def cold_step(x, inp):
+            t, t_next, k = inp
+            x0 = x0_fn(x, t)
+            a_next = irsde.mean_coef(t_next, cfg)
+            moved = x + (x0 - x_r) * (a_next - irsde.mean_coef(t, cfg))
+            if anchor:
+                moved = jnp.where(k == 0, x_r + (x0 - x_r) * a_next, moved)
+            return moved, x0
+
+        _, hist = jax.lax.scan(cold_step, x_r, (ts[:-1], ts[1:], jnp.arange(n_steps)))
+        return (hist[-1], hist) if return_history else hist[-1]
 
     def step(x, inp):
         t, t_next, k = inp

@@ -13,6 +13,7 @@ the Denoiser's ``track`` argument); its eps output is in normalised units.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -190,6 +191,23 @@ class RunModel:
         """Refinement rounds the run's configs ask for at inference (``sde.rounds``; 1 without an SDE)."""
         sde = self.configs.get("sde")
         return 1 if sde is None else sde.rounds
+
+    # READ's refinement loop, and the ablations' loops built on it (READ-O's CD sampler, READ-L), run
+    # the SDE's inference update (``sde.update``, :mod:`readjax.diffusion.refine`); other samplers have none
+    has_refine_update = False
+
+    @property
+    def refine_update(self) -> str | None:
+        """The inference update (``sde.update``) generate() runs; None for a method without one."""
+        return self.configs["sde"].update if self.has_refine_update else None
+
+    def set_refine_update(self, update: str) -> None:
+        """Refine with another inference update ("renoise": the paper, "cold", "cold_anchor";
+        ``SDEConfig.update``). The trained weights do not depend on it."""
+        if not self.has_refine_update:
+            raise ValueError(f"{self.spec.get('method')} has no refinement update to choose (one is run by "
+                             "read, read_l and read_o with the cd sampler)")
+        self.configs = dict(self.configs, sde=dataclasses.replace(self.configs["sde"], update=update))
 
     def network_params(self, stage: str, template):
         """The trained parameters of this run's network stage ``stage`` (``base.network_stage_spec``)."""

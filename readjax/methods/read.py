@@ -182,6 +182,7 @@ class ReadModel(common.DenoiserRunModel):
     """
 
     uses_retrieval = True
+    has_refine_update = True
 
     def __init__(self, run_dir: str | Path):
         super().__init__(run_dir)
@@ -212,11 +213,6 @@ class ReadModel(common.DenoiserRunModel):
                        if configs["sde"].latent_norm else None)
         self._setup_encoder()
         return self
-
-    def set_refine_update(self, update: str) -> None:
-        """Refine with another inference update ("renoise": the paper, "cold"; ``SDEConfig.update``).
-        The trained weights do not depend on it."""
-        self.configs = dict(self.configs, sde=dataclasses.replace(self.configs["sde"], update=update))
 
     def generate(self, features, retrieved, key, n_steps: int) -> jax.Array:
         n = common.check_n_steps(n_steps, allow_zero=True, method="read")

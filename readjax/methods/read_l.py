@@ -9,7 +9,8 @@ demos, t ~ U(t_min, 1), z_t from the latent IR-SDE marginal (section 5); the
 uv and predicts ẑ0; loss = MSE(ẑ0, z0) over the latent dims.
 
 Inference: cold diffusion in latent space from zR (:func:`readjax.diffusion.taskspace.cold_diffusion`
-on latents): ẑ0 = LD(F, z, Dec(z).uv, t_k); z = zR + (ẑ0 - zR) a(t_{k+1}) + lam sqrt(1 - a^2) eps;
+on latents): ẑ0 = LD(F, z, Dec(z).uv, t_k), then the SDE's update as READ's loop runs it
+(``sde.update``; the paper's "renoise": z = zR + (ẑ0 - zR) a(t_{k+1}) + lam sqrt(1 - a^2) eps);
 return Dec(last ẑ0). N = 0 returns M_R. Retrieval is SPE on this run's own UNet features.
 """
 
@@ -117,6 +118,7 @@ class ReadLModel(common.DenoiserRunModel):
     """A trained READ-L run."""
 
     uses_retrieval = True
+    has_refine_update = True  # its latent CD loop runs sde.update
 
     def __init__(self, run_dir):
         super().__init__(run_dir)

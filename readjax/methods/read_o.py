@@ -9,7 +9,7 @@ uv. ``read_o.sampler`` picks the training target and the sampler (:mod:`readjax.
 
 * ``cd``: ``output="delta"``, x̂0 = x_t + heads (normalised); loss = sum of per-key MSE between the
   denormalised x̂0 and M, in raw units (READ's loss); cold-diffusion refinement from x_R (section 8
-  without Enc/Dec);
+  without Enc/Dec, with READ's inference update ``sde.update``);
 * ``em``: ``output="eps"``; loss = sum of per-key MSE(eps_hat, eps) (normalised units);
   Euler-Maruyama on the reverse SDE from x_R + std(1) eps.
 
@@ -111,6 +111,7 @@ class ReadOModel(common.DenoiserRunModel):
     def __init__(self, run_dir):
         super().__init__(run_dir)
         self.sampler = self.configs["read_o"].sampler
+        self.has_refine_update = self.sampler == "cd"  # CD runs sde.update; EM samples the reverse SDE
         self.den = build_denoiser(self.configs)
         key = jax.random.key(self.configs["train"].seed + 1)
         self.den_params = self.network_params("read_o", init_denoiser(self.den, self.image_size, key))

@@ -64,3 +64,27 @@ def test_samplers_deterministic_in_the_key():
     a, b, c = f(key(3)), f(key(3)), f(key(4))
     np.testing.assert_array_equal(a, b)
     assert not np.allclose(a[0], c[0]) and not np.allclose(a[1], c[1])
+
+
+@pytest.mark.parametrize("update", ["cold", "cold_anchor"])
+def test_cold_diffusion_runs_the_sdes_update_as_reads_loop_does(update):
+    """READ-O's CD (and READ-L's latent CD) follow ``sde.update`` like READ's refinement: the cold
+    update moves x by the change of the degradation; cold_anchor's first step is the degraded
+    prediction without noise. Neither draws noise: the key does not matter."""
+    import dataclasses
+
+    cfg = dataclasses.replace(CFG, update=update)
+    x_r = jnp.linspace(-1, 1, 12).reshape(3, 4)
+    x0_fn = lambda x, t: 0.5 * x + t  # noqa: E731
+    final, hist = taskspace.cold_diffusion(x0_fn, key(0), x_r, cfg, 3, return_history=True)
+    ts = np.linspace(1.0, taskspace.DEFAULT_T_END, 4)
+    a = [float(irsde.mean_coef(t, cfg)) for t in ts]
+    x = x_r
+    for k in range(3):
+        x0 = x0_fn(x, ts[k])
+        np.testing.assert_allclose(hist[k], x0, rtol=1e-5, atol=1e-6)
+        x = x_r + (x0 - x_r) * a[1] if (k == 0 and update == "cold_anchor") else x + (x0 - x_r) * (a[k + 1] - a[k])
+    np.testing.assert_array_equal(final, hist[-1])
+    np.testing.assert_array_equal(final, taskspace.cold_diffusion(x0_fn, key(9), x_r, cfg, 3))
+    truth = jnp.full_like(x_r, 3.0)
+    np.testing.assert_allclose(taskspace.cold_diffusion(lambda x, t: truth, key(1), x_r, cfg, 4), truth)

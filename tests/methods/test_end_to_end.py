@@ -30,7 +30,8 @@ CASES = {  # run name -> (method, extra overrides, stages)
     "deterministic": ("deterministic", [], ("deterministic",)),
     "vpsde": ("vpsde", ["vpsde.sampler=sde"], ("vpsde",)),
     "vpsde_cg": ("vpsde_cg", ["vpsde.guidance=1.5"], ("vpsde_cg",)),
-    "read_o": ("read_o", [], ("read_o",)),
+    "read_o": ("read_o", [], ("read_o",)),  # CD: READ's update (sde.update) in task space
+    "read_o_em": ("read_o", ["read_o.sampler=em"], ("read_o",)),  # the reverse SDE: no update to choose
     "read_l": ("read_l", ["sde.latent_norm=true"], ("vae", "read_l")),
     "read_kinematic": ("read", ["vae.kinematic=true", "sde.latent_norm=true"], ("vae", "read")),
     # the convergence rule: 2 of the 8 demos held out, validated every 2 steps; no 90 % gain within 2
@@ -84,6 +85,10 @@ def test_train_and_plan(data, name):
         np.testing.assert_array_equal(other, plan.motion)  # no sampling: the key is ignored
     else:
         assert not np.allclose(other, plan.motion)  # another key -> another sample
+    assert (refine_update(planner.model) is not None) == (method in ("read", "read_l") or name == "read_o")
+    if refine_update(planner.model) is None:
+        with pytest.raises(ValueError, match="no refinement update"):
+            planner.model.set_refine_update("cold")
     if cold:  # the paper's loop re-noises: the key matters
         planner.model.set_refine_update("renoise")
         paper = planner.model.generate(planner.encode(rgbd), plan.retrieved, jax.random.key(0), 2)
