@@ -98,3 +98,18 @@ def euler_maruyama(key: jax.Array, z0: jax.Array, zR: jax.Array, cfg: SDEConfig,
 
     z, path = jax.lax.scan(step, z0, (ts, keys))
     return path if return_path else z
+
+
+def cold_update(x, x0, x_r, t, t_next, k, cfg: SDEConfig):
+    """One step of the cold-diffusion updates (``cfg.update`` "cold" or "cold_anchor") on the
+    degradation D(x0, t) = x_R + (x0 - x_R) a(t), for a state x (a latent or a motion), the step's
+    prediction x0 and its index k: "cold" moves x by the change of the degradation, x + (x0 - x_R)
+    (a(t_next) - a(t)) (Bansal et al. 2022, Algorithm 2); "cold_anchor" sets the first step (k = 0)
+    to D(x0, t_next) instead. No noise. The one home of the update READ's loop
+    (:mod:`readjax.diffusion.refine`) and the ablations' (:mod:`readjax.diffusion.taskspace`) run."""
+    a_next = mean_coef(t_next, cfg)
+    moved = x + (x0 - x_r) * (a_next - mean_coef(t, cfg))
+    if cfg.update == "cold_anchor":
+        moved = jnp.where(k == 0, x_r + (x0 - x_r) * a_next, moved)
+    return moved
+

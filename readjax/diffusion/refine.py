@@ -91,17 +91,11 @@ def refine(ae, ae_params, denoiser, den_params, features: jax.Array, m_r: jax.Ar
     z_r = enc(m_r)
 
     if sde.update in ("cold", "cold_anchor"):
-        anchor = sde.update == "cold_anchor"
 
         def cold_step(z, inp):
             t, t_next, k = inp
             m0 = denoiser.apply(den_params, features, dec(z), t, method="denoise")
-            z0 = enc(m0)
-            a_next = irsde.mean_coef(t_next, sde)
-            moved = z + (z0 - z_r) * (a_next - irsde.mean_coef(t, sde))
-            if anchor:
-                moved = jnp.where(k == 0, z_r + (z0 - z_r) * a_next, moved)
-            return moved, m0
+            return irsde.cold_update(z, enc(m0), z_r, t, t_next, k, sde), m0
 
         _, hist = jax.lax.scan(cold_step, z_r, (ts[:-1], ts[1:], jnp.arange(n_steps)))
         return (hist[-1], hist) if return_history else hist[-1]

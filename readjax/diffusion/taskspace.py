@@ -54,16 +54,11 @@ def cold_diffusion(x0_fn: Callable, key: jax.Array, x_r: jax.Array, cfg: SDEConf
     ts = time_grid(n_steps, t_end)
 
     if cfg.update in ("cold", "cold_anchor"):
-        anchor = cfg.update == "cold_anchor"
 
         def cold_step(x, inp):
             t, t_next, k = inp
             x0 = x0_fn(x, t)
-            a_next = irsde.mean_coef(t_next, cfg)
-            moved = x + (x0 - x_r) * (a_next - irsde.mean_coef(t, cfg))
-            if anchor:
-                moved = jnp.where(k == 0, x_r + (x0 - x_r) * a_next, moved)
-            return moved, x0
+            return irsde.cold_update(x, x0, x_r, t, t_next, k, cfg), x0
 
         _, hist = jax.lax.scan(cold_step, x_r, (ts[:-1], ts[1:], jnp.arange(n_steps)))
         return (hist[-1], hist) if return_history else hist[-1]
