@@ -30,6 +30,9 @@ def _fingerprint_from_summary(monkeypatch):
     monkeypatch.setattr(pipeline, "split_fingerprint", fingerprint)
 
 
+REFINING = ("read", "read_o", "read_l")  # methods that run READ's refinement update (sde.update)
+
+
 class FakeRunner:
     """Stands in for the commands: writes what each would write, records the calls. ``machine``
     enters every dataset's content hash, as float rounding does on a real machine."""
@@ -90,10 +93,12 @@ class FakeRunner:
                     "episodes": k, "N": n, "retrieval": "cheat" if oracle else "spe", "rank": rank, "candidates": 1,
                     "rounds": 1,
                     "image_noise": noise, "brightness": bright,
-                                "refine_update": "renoise" if method == "read" else None},
+                                "refine_update": "renoise" if method in REFINING else None},
+                # READ and its ablations refine with their run's update (here the paper's, one round); a
+                # run records only its method's sections (no SDE for the baselines)
                 "configs": {**self.recipes.get(str(run), {}), "sde": {
                     **self.recipes.get(str(run), {}).get("sde", {}), "update": "renoise", "rounds": 1}}
-                if method == "read" else self.recipes.get(str(run), {}),
+                if method in REFINING else {k: v for k, v in self.recipes.get(str(run), {}).items() if k != "sde"},
                 "seeds": list(range(1000000, 1000000 + k)), "success": [ok] * k}))
             (ev / f"{name}_overlay.png").write_bytes(b"png")
             if int(arg("--videos")):
