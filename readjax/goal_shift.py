@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import camera as cam_lib
+from readjax import motion as motion_lib
 from readjax.data import store
 from readjax.sim.render import SceneRenderer, render_scenes
 
@@ -58,26 +59,32 @@ def render_pair(env, ds: store.Dataset, shifts: np.ndarray, image_size: int):
     return store.resize_images(same, image_size), store.resize_images(shifted, image_size), replay
 
 
-def plan_ends(planner, images: np.ndarray, gt: np.ndarray, key: jax.Array, n_steps: int, rank: int,
-              batch_size: int = 50) -> np.ndarray:
-    """World end points (B, 3) of the planner's plans from the oracle's ``rank``-th neighbour of ``gt``
-    (fixed batch shape: one compile per N)."""
+def _batches(n: int, batch_size: int):
+    """(indices, kept) per batch of a fixed shape (the last one wraps around: one compile per shape)."""
+    for s in range(0, n, batch_size):
+        yield np.arange(s, s + batch_size) % n, min(batch_size, n - s)
+
+
+def encode(planner, images: np.ndarray, batch_size: int = 50) -> jax.Array:
+    """The planner's image features of every image, once (every start and both images reuse them)."""
+    return jnp.concatenate([planner.encode(images[idx])[:take] for idx, take in _batches(len(images), batch_size)])
+
+
+def refined_ends(planner, features: jax.Array, starts: np.ndarray, key: jax.Array, n_steps: int,
+                 batch_size: int = 50) -> np.ndarray:
+    """World end points (B, 3) of the planner's refinement (its default rounds) of ``starts`` (B, 101, 10)
+    on ``features``: what ``Planner.plan`` plans from those starts, without its IK."""
+    rounds = planner.default_rounds if n_steps > 0 else 1
     ends = []
-    for s in range(0, len(images), batch_size):
-        idx = np.arange(s, s + batch_size) % len(images)
-        take = min(batch_size, len(images) - s)
-        plan = planner.plan(images[idx], key, N=n_steps, retrieval_method="cheat", gt_motion=gt[idx], rank=rank)
-        ends.append(np.asarray(plan.positions)[:take, -1])
+    for idx, take in _batches(len(starts), batch_size):
+        m = planner.refine(features[idx], jnp.asarray(starts[idx]), key, n_steps, rounds)
+        ends.append(np.asarray(motion_lib.decode(planner.camera, m)[0])[:take, -1])
     return np.concatenate(ends)
 
 
-def start_distance_px(planner, gt: np.ndarray, rank: int) -> np.ndarray:
-    """(B,) how far the oracle's ``rank``-th start ends from the ground truth's end in the image (px)."""
-    from readjax import retrieval
-
-    idx = retrieval.oracle_retrieve(planner.camera, gt, planner.database.motion, rank)
-    end_uv = np.asarray(planner.database.motion)[idx][:, -1, :2]
-    return np.linalg.norm(end_uv - gt[:, -1, :2], axis=-1) * planner.image_size / 2
+def start_distance_px(planner, starts: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """(B,) how far each start's end lies from the ground truth's end in the image (px)."""
+    return np.linalg.norm(starts[:, -1, :2] - gt[:, -1, :2], axis=-1) * planner.image_size / 2
 
 
 def sensitivity(ends: np.ndarray, ends_moved: np.ndarray, shifts: np.ndarray) -> np.ndarray:
@@ -104,14 +111,14 @@ def pixel_uv(size: int) -> np.ndarray:
     return np.stack([u, v], axis=-1)
 
 
-def feature_reach(planner, images: np.ndarray, moved: np.ndarray, goal_uv: np.ndarray, moved_uv: np.ndarray,
+def feature_reach(planner, features: jax.Array, moved: jax.Array, goal_uv: np.ndarray, moved_uv: np.ndarray,
                   bins=REACH_BINS_PX) -> list[dict]:
     """How far the goal's move reaches into the denoiser's image features: per pixel, the change of
-    the full-resolution feature map, over the map's median norm, binned by the pixel's distance (px)
+    the full-resolution feature map (from the planner's features of the images as generated and with
+    the goal moved, :func:`encode`), over the map's median norm, binned by the pixel's distance (px)
     from the nearer of the goal's two positions (uv (B, 2) each)."""
     model = planner.model
-    full = [np.asarray(model.den.apply(model.den_params, planner.encode(x), method="full_features"))
-            for x in (images, moved)]
+    full = [np.asarray(model.den.apply(model.den_params, f, method="full_features")) for f in (features, moved)]
     change = np.linalg.norm(full[1] - full[0], axis=-1) / np.median(np.linalg.norm(full[0], axis=-1))
     grid, s = pixel_uv(full[0].shape[1]), full[0].shape[1] / 2
     dist = np.minimum(np.linalg.norm(grid[None] - goal_uv[:, None, None], axis=-1),
@@ -133,13 +140,15 @@ def report(planner, env, ds: store.Dataset, ranks=DEFAULT_RANKS, shift_m: float 
     uv0 = np.asarray(cam_lib.project_uvz(planner.camera, jnp.asarray(goal)))[:, :2]
     uv1 = np.asarray(cam_lib.project_uvz(planner.camera, jnp.asarray(goal + shifts)))[:, :2]
     gt, key = np.asarray(ds.motion), jax.random.PRNGKey(seed)
+    features = [encode(planner, x, batch_size) for x in (images, moved)]
     per_rank = []
     for rank in ranks:
         say(f"rank {rank}: planning on both images (N = {n_steps})")
-        ends = plan_ends(planner, images, gt, key, n_steps, rank, batch_size)
-        ends_moved = plan_ends(planner, moved, gt, key, n_steps, rank, batch_size)
+        # the same start for both images: the oracle's neighbour of the original ground truth
+        starts = np.asarray(planner.database.motion)[planner.retrieve(None, "cheat", gt, rank)]
+        ends, ends_moved = (refined_ends(planner, f, starts, key, n_steps, batch_size) for f in features)
         s = sensitivity(ends, ends_moved, shifts)
-        per_rank.append({"rank": rank, "start_px": start_distance_px(planner, gt, rank).tolist(),
+        per_rank.append({"rank": rank, "start_px": start_distance_px(planner, starts, gt).tolist(),
                          "sensitivity": s.tolist(),
                          "end_moved_cm": (np.linalg.norm(ends_moved - ends, axis=-1) * 100).tolist()})
     start = np.concatenate([r["start_px"] for r in per_rank])
@@ -149,7 +158,7 @@ def report(planner, env, ds: store.Dataset, ranks=DEFAULT_RANKS, shift_m: float 
             "goal_move_px_median": float(np.median(np.linalg.norm(uv1 - uv0, axis=-1)) * planner.image_size / 2),
             "replay_max_abs_diff": replay, "ranks": per_rank,
             "by_start": binned(start, sens, START_BINS_PX),
-            "feature_reach": feature_reach(planner, images, moved, uv0, uv1)}
+            "feature_reach": feature_reach(planner, *features, uv0, uv1)}
 
 
 def _bin_label(row: dict) -> str:

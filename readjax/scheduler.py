@@ -261,7 +261,8 @@ def _finish(step: Step, t0: float, load: float | None, by_kind: dict, by_label: 
     step.after()
     if not step.made():
         record_piece(step, t0, time.time() - t0, cpu_seconds)
-        raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there ({MISSING.get(step.kind, 'its output check failed')})")
+        why = MISSING.get(step.kind, "its output check failed")
+        raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there ({why})")
     seconds = time.time() - t0
     by_kind.setdefault(step.kind, []).append(seconds)
     by_label.setdefault(step.label, []).append(seconds)

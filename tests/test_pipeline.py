@@ -223,7 +223,8 @@ def test_goal_shift_on_the_trained_run(run, tmp_path, capsys):
     planner = Planner.load(run_dir, data)
     test = store.load_dataset(data / "reach_target" / "test").resized(planner.image_size)
     uv = test.motion[:, -1, :2]
-    assert all(b["median"] == 0 for b in goal_shift.feature_reach(planner, test.rgbd, test.rgbd, uv, uv))
+    feats = goal_shift.encode(planner, test.rgbd)
+    assert all(b["median"] == 0 for b in goal_shift.feature_reach(planner, feats, feats, uv, uv))
     assert _cli.run(goal_shift_cli.main, argv + ["--shift-cm", "0"]) == 2
 
 

@@ -45,7 +45,8 @@ def test_the_default_evaluation_of_other_methods():
     # READ-O has READ's SDE but not its update: its default evaluation runs its run's sde.rounds
     read_o = {"method": "read_o", "name": "x",
               "eval_config": {"episodes": 100, "N": 100, "retrieval": "spe", "rank": 1, "candidates": 1,
-                              "rounds": 2, "refine_update": None}, "configs": {"sde": {"update": "cold_anchor", "rounds": 2}}}
+                              "rounds": 2, "refine_update": None},
+              "configs": {"sde": {"update": "cold_anchor", "rounds": 2}}}
     assert is_default_eval(read_o, "read_o", 100)
     assert not is_default_eval({**read_o, "eval_config": {**read_o["eval_config"], "rounds": 1}}, "read_o", 100)
     assert not is_default_eval({**direct, "eval_config": {**direct["eval_config"], "rounds": 2}}, "deterministic", None)

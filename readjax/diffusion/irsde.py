@@ -112,4 +112,3 @@ def cold_update(x, x0, x_r, t, t_next, k, cfg: SDEConfig):
     if cfg.update == "cold_anchor":
         moved = jnp.where(k == 0, x_r + (x0 - x_r) * a_next, moved)
     return moved
-
