@@ -15,6 +15,11 @@ pixel's distance from the goal (before or after the move). READ's denoiser sees 
 through these features sampled along the plan's track (``Denoiser.image_tokens``; with
 ``input_skip`` also the input pixels under the track, which reach no further than one pixel).
 
+Beside them, the same axis for what the denoiser was trained on (:func:`training_input_px`): how far
+from their own goal its training inputs end (READ's and READ-L's, whose inputs decode the SDE's
+latent marginal between a demo and one of its K retrieval neighbours): a start beyond what training
+ever showed asks the denoiser for a correction it never learnt.
+
 No simulator runs: only the renderer, the planner and the camera model.
 """
 
@@ -26,7 +31,10 @@ import numpy as np
 
 from readjax import camera as cam_lib
 from readjax import motion as motion_lib
+from readjax import retrieval
 from readjax.data import store
+from readjax.diffusion import irsde
+from readjax.diffusion import latent as latent_lib
 from readjax.sim.render import SceneRenderer, render_scenes
 
 DEFAULT_RANKS = (1, 10, 50, 200, 500)
@@ -126,6 +134,52 @@ def feature_reach(planner, features: jax.Array, moved: jax.Array, goal_uv: np.nd
     return binned(dist.ravel(), change.ravel(), bins)
 
 
+def training_input_ends(model, motions: np.ndarray, i: np.ndarray, j: np.ndarray, t: np.ndarray,
+                        key: jax.Array, chunk: int = 500) -> np.ndarray:
+    """Final-frame uv (B, 2) of the denoiser's training inputs Dec(z_t) for demos ``motions[i]`` paired
+    with retrieved ``motions[j]`` at times ``t`` (B,): z_t drawn from the SDE's marginal between
+    Enc(M) and Enc(M_R), as READ's and READ-L's losses draw it (``sde.self_feed`` aside)."""
+    sde = model.configs["sde"]
+    codes = latent_lib.codes(model.ae, model.ae_params, motions, model.latent)
+    _, dec = latent_lib.codec(model.ae, model.ae_params, model.latent)
+    z_t = irsde.marginal_sample(key, jnp.asarray(codes[i]), jnp.asarray(codes[j]), jnp.asarray(t), sde)
+    end_uv = jax.jit(lambda z: motion_lib.uv(dec(z))[:, -1])
+    return np.concatenate([np.asarray(end_uv(z_t[s:s + chunk])) for s in range(0, len(i), chunk)])
+
+
+def training_input_px(planner, draws: int = 4000, seed: int = 0) -> np.ndarray | None:
+    """(draws,) how far from its goal (px of the planner's image) each of ``draws`` training inputs of
+    the denoiser ends, drawn as training draws them: a training demo M (the held-out validation slice
+    excluded), M_R uniform among its K nearest (``retrieval.training_pairs``), t ~ U(t_min, 1), the
+    input Dec(z_t); the distance is its final uv against M's. None for a model without an
+    autoencoder (READ-O: its SDE runs in task space)."""
+    from readjax.methods.base import train_size
+
+    model = planner.model
+    if getattr(model, "ae", None) is None or "sde" not in model.configs:
+        return None
+    train = model.configs["train"]
+    motions = np.asarray(planner.database.motion)
+    n_train = train_size(len(motions), train)
+    pairs = retrieval.training_pairs(planner.camera, motions, train.K, clamp=True, pool=n_train)
+    rng = np.random.default_rng(seed)
+    i = rng.integers(0, n_train, draws)
+    j = pairs[i, rng.integers(0, pairs.shape[1], draws)]
+    k_t, k_n = jax.random.split(jax.random.PRNGKey(seed))
+    t = np.asarray(irsde.sample_time(k_t, (draws,), model.configs["sde"]))
+    ends = training_input_ends(model, motions, i, j, t, k_n)
+    return np.linalg.norm(ends - motions[i, -1, :2], axis=-1) * planner.image_size / 2
+
+
+def support_summary(px: np.ndarray, bins=START_BINS_PX) -> dict:
+    """Percentiles of the training inputs' distances and their share in each start bin (all bins kept)."""
+    counts = np.histogram(px, bins=bins)[0]
+    return {"draws": int(len(px)),
+            "px_percentiles": {str(q): float(np.percentile(px, q)) for q in (50, 90, 99, 99.9)},
+            "by_start": [{"lo": lo, "hi": hi, "share": float(c / len(px))}
+                         for lo, hi, c in zip(bins[:-1], bins[1:], counts)]}
+
+
 def report(planner, env, ds: store.Dataset, ranks=DEFAULT_RANKS, shift_m: float = 0.04, n_steps: int = 100,
            seed: int = 0, batch_size: int = 50, progress=None) -> dict:
     """The goal-shift diagnostic on ``ds`` (a test split with its scenes) for a READ-family planner."""
@@ -153,16 +207,22 @@ def report(planner, env, ds: store.Dataset, ranks=DEFAULT_RANKS, shift_m: float 
                          "end_moved_cm": (np.linalg.norm(ends_moved - ends, axis=-1) * 100).tolist()})
     start = np.concatenate([r["start_px"] for r in per_rank])
     sens = np.concatenate([r["sensitivity"] for r in per_rank])
+    support = training_input_px(planner, seed=seed)
     return {"task": ds.task, "images": len(ds), "shift_m": shift_m, "N": n_steps, "seed": seed,
             "rounds": planner.default_rounds, "image_size": planner.image_size,
             "goal_move_px_median": float(np.median(np.linalg.norm(uv1 - uv0, axis=-1)) * planner.image_size / 2),
             "replay_max_abs_diff": replay, "ranks": per_rank,
             "by_start": binned(start, sens, START_BINS_PX),
-            "feature_reach": feature_reach(planner, *features, uv0, uv1)}
+            "feature_reach": feature_reach(planner, *features, uv0, uv1),
+            "training_inputs": None if support is None else support_summary(support)}
 
 
 def _bin_label(row: dict) -> str:
     return f"{row['lo']}-{row['hi']} px" if row["hi"] < 1000 else f">= {row['lo']} px"
+
+
+def _share(key, share: dict) -> str:
+    return "–" if key not in share else f"{share[key]:.1%}"
 
 
 def format_lines(result: dict) -> list[str]:
@@ -175,8 +235,17 @@ def format_lines(result: dict) -> list[str]:
         s = np.asarray(r["sensitivity"])
         lines.append(f"| i = {r['rank']} | {np.median(r['start_px']):.1f} | {np.median(s):+.2f} | "
                      f"{np.mean(s > FOLLOWS):.0%} |")
-    lines += ["", "| start's distance from the goal | plans | sensitivity, median | follows |", "|---|---|---|---|"]
-    lines += [f"| {_bin_label(b)} | {b['n']} | {b['median']:+.2f} | {b['follows']:.0%} |" for b in result["by_start"]]
+    support = result.get("training_inputs")
+    share = {} if support is None else {(b["lo"], b["hi"]): b["share"] for b in support["by_start"]}
+    lines += ["", "| start's distance from the goal | plans | sensitivity, median | follows "
+                  "| training inputs here |", "|---|---|---|---|---|"]
+    lines += [f"| {_bin_label(b)} | {b['n']} | {b['median']:+.2f} | {b['follows']:.0%} | "
+              f"{_share((b['lo'], b['hi']), share)} |" for b in result["by_start"]]
+    if support is not None:
+        q = support["px_percentiles"]
+        lines += ["", f"The denoiser's training inputs ({support['draws']} drawn as training draws them) end "
+                      f"{q['50']:.1f} / {q['90']:.1f} / {q['99']:.1f} / {q['99.9']:.1f} px from their goal "
+                      "(percentiles 50 / 90 / 99 / 99.9)."]
     lines += ["", "| pixel's distance from the goal | feature change / median feature norm, median |", "|---|---|"]
     lines += [f"| {_bin_label(b)} | {b['median']:.3f} |" for b in result["feature_reach"]]
     return lines
@@ -199,7 +268,15 @@ def plot(result: dict, path) -> None:
     a.axhline(0.0, color="grey", lw=0.8)
     a.set(xlabel="start's end, distance from the goal (px)", ylabel="sensitivity of the plan's end",
           title=f"{result['task']}: does the plan follow a moved goal?", ylim=(-1.5, 2.0))
-    a.legend(fontsize=7)
+    a.legend(fontsize=7, loc="upper right")
+    support = result.get("training_inputs")
+    if support is not None:  # where the denoiser's training inputs end, on the same axis
+        twin = a.twinx()
+        rows = [r for r in support["by_start"] if r["hi"] < 1000]
+        twin.bar([r["lo"] for r in rows], [r["share"] for r in rows], width=[r["hi"] - r["lo"] for r in rows],
+                 align="edge", color="tab:grey", alpha=0.25)
+        twin.set_ylabel("share of the denoiser's training inputs", color="tab:grey")
+        twin.set_ylim(0, 1)
     reach = result["feature_reach"]
     b.plot([min(row["hi"], row["lo"] + 8) / 2 + row["lo"] / 2 for row in reach], [row["median"] for row in reach], "o-")
     b.set(xlabel="pixel's distance from the goal (px)", ylabel="feature change / median norm",

@@ -216,6 +216,7 @@ def test_goal_shift_on_the_trained_run(run, tmp_path, capsys):
     assert [r["rank"] for r in result["ranks"]] == [1, 3]
     assert all(len(r["sensitivity"]) == 4 and len(r["start_px"]) == 4 for r in result["ranks"])
     assert sum(b["n"] for b in result["by_start"]) == 8
+    assert result["training_inputs"]["draws"] == 4000  # READ: its training inputs' reach beside the plans'
     reach = result["feature_reach"]
     assert reach[0]["lo"] == 0 and reach[0]["median"] > 10 * reach[-1]["median"]
     assert out.with_suffix(".png").exists() and "| i = 3 |" in capsys.readouterr().out
@@ -226,6 +227,45 @@ def test_goal_shift_on_the_trained_run(run, tmp_path, capsys):
     feats = goal_shift.encode(planner, test.rgbd)
     assert all(b["median"] == 0 for b in goal_shift.feature_reach(planner, feats, feats, uv, uv))
     assert _cli.run(goal_shift_cli.main, argv + ["--shift-cm", "0"]) == 2
+
+
+def test_training_inputs_decode_the_sde_marginal(run):
+    """The goal-shift diagnostic's training support draws the denoiser's inputs from the SDE's
+    marginal: at t = t_min it is Enc(M) itself, so the inputs end where the autoencoder's round trip
+    of M ends, whatever M_R; with no noise to speak of (lam = 1e-6) at t = 1 it is its mean,
+    zR + a(1) (z0 - zR)."""
+    import jax.numpy as jnp
+
+    from readjax import goal_shift
+    from readjax.diffusion import irsde
+    from readjax.diffusion import latent as latent_lib
+
+    data, run_dir = run
+    planner = Planner.load(run_dir, data)
+    model, motions = planner.model, np.asarray(planner.database.motion)
+    n = len(motions)
+    i, j = np.arange(n), (np.arange(n) + 3) % n
+    sde = model.configs["sde"]
+    near = goal_shift.training_input_ends(model, motions, i, j, np.full(n, sde.t_min, np.float32),
+                                          jax.random.PRNGKey(0))
+    enc, dec = latent_lib.codec(model.ae, model.ae_params, model.latent)
+    z = enc(jnp.asarray(motions))
+    np.testing.assert_allclose(near, np.asarray(dec(z))[:, -1, :2], atol=2e-3)
+    model.configs["sde"] = dataclasses.replace(sde, lam=1e-6, theta0=sde.theta_start)
+    try:
+        far = goal_shift.training_input_ends(model, motions, i, j, np.ones(n, np.float32),
+                                             jax.random.PRNGKey(1))
+        a = irsde.mean_coef(1.0, model.configs["sde"])
+    finally:
+        model.configs["sde"] = sde
+    np.testing.assert_allclose(far, np.asarray(dec(z[j] + a * (z[i] - z[j])))[:, -1, :2], atol=1e-4)
+    px = goal_shift.training_input_px(planner, draws=64, seed=1)
+    assert px.shape == (64,) and np.all(px >= 0)
+    np.testing.assert_array_equal(px, goal_shift.training_input_px(planner, draws=64, seed=1))
+    summary = goal_shift.support_summary(px)
+    assert sum(b["share"] for b in summary["by_start"]) == pytest.approx(1.0)
+    q = summary["px_percentiles"]
+    assert q["50"] <= q["90"] <= q["99"] <= q["99.9"]
 
 
 def test_refine_report_on_the_trained_run(run, tmp_path, capsys):
