@@ -8,8 +8,14 @@ examples:
   python -m experiments.sweep --task reach_target --grid N=0,1,10,100 L=0.1,0.5,1.0
   python -m experiments.sweep --task PB --grid N=1,10,100 --episodes 50
   python -m experiments.sweep --task RT --grid N=0,1,10,100 --results results/   # committed, with paired tests vs A
-  python -m experiments.sweep --task PB --grid N=0,1,10,100 K=1,3,10 L=0.1,0.5,1.0 T=0.1,2.0 --vary one \
-      --reference-run runs/push_button/read --results results/   # Table 7: each key alone from A, A not retrained
+  # Table 7: each key alone from A (A not retrained), two trainings at once
+  python -m experiments.sweep --task PB --grid N=0,1,10,100 K=1,3,10 L=0.1,0.5,1.0 T=0.1,2.0 --vary one \\
+      --reference-run runs/push_button/read --results results/ --jobs 2
+
+A sweep is resumable across machines: with --results, a cell whose run is gone (a fresh machine) but
+whose evaluations are committed there, on the same test episodes, is kept as committed; the others
+train. Each cell records a digest of its autoencoder's training trace (vae_trace): cells with the same
+trace decode with the same autoencoder.
 
 Setting A is the preset's own (the paper preset: the paper's N = 100, K = 3, L = 0.5, T = 2.0; the cpu
 preset trains on K = 50), with the --set overrides; every cell records the values it trained with.
@@ -48,6 +54,9 @@ def parser() -> argparse.ArgumentParser:
                    help="a finished run trained as setting A (same --preset, --set and data; checked): A's "
                         "cell evaluates it instead of training again, and takes the run's own evaluations of "
                         "the same episodes (the pipeline's, in RUN/eval/) where it has them")
+    p.add_argument("--jobs", type=_cli.positive_int, default=1,
+                   help="trainings at once: each cell's training its own `experiments.train` process (logs in "
+                        "OUT/<task>/<name>/logs/), the evaluations after them; 2 on 2 cores, a dozen on a GPU")
     p.add_argument("--quiet", action="store_true")
     return p
 
@@ -59,7 +68,7 @@ def main(argv=None) -> None:
     cfg = SweepConfig(task=args.task, grid=parse_grid(args.grid), model=args.model, preset=args.preset,
                       data=args.data, out=args.out, name=args.name, episodes=args.episodes,
                       sets=tuple(args.set), batch_size=args.batch_size, results=args.results,
-                      reference_run=args.reference_run, vary=args.vary)
+                      reference_run=args.reference_run, vary=args.vary, jobs=args.jobs)
     result = run_sweep(cfg, progress=not args.quiet)
     print(format_table7(result))
 

@@ -3,19 +3,25 @@
 N (refinement steps) is test-time only: one trained model serves every N. K (neighbour pool),
 L (lambda) and T (theta1) change training, so each of their combinations is its own run; the
 autoencoder stage does not depend on them and is trained once and shared. Every finished cell
-(a training run, an evaluation) is kept on disk and skipped when the sweep is run again.
+(a training run, an evaluation) is kept on disk and skipped when the sweep is run again; with
+``results`` set, a cell whose run is not on this machine (a fresh one) but whose evaluations are
+committed there on the same test episodes is taken from there, not trained again. ``jobs`` > 1 trains
+the cells side by side (``experiments.train`` processes through the grid's step runner) before
+evaluating them one after the other.
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from readjax import _runtime, config, evaluation, methods, result_record, stage_folder, tasks
+from readjax import _runtime, config, evaluation, methods, result_record, scheduler, stage_folder, tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.paired import discordant
@@ -75,6 +81,9 @@ class SweepConfig:
     # "all": every combination of the grid's values; "one": Table 7's layout, setting A and each key
     # varied alone from it (the other keys at A's values; N varied at A's training only)
     vary: str = "all"
+    # trainings at once (jobs > 1: each cell's training an ``experiments.train`` process, the
+    # evaluations after them in this one); a GPU holds a dozen, 2 cores two
+    jobs: int = 1
 
 
 def _label(v) -> str:
@@ -94,30 +103,69 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         generate(GenerateConfig(task=task, split="test", episodes=cfg.episodes, out=cfg.data,
                                 image_size=meta.get("image_size", 64)), progress=progress)
     test_ds = store.load_dataset(test_dir, limit=cfg.episodes)
-    cells, vae_source = [], None
+    if cfg.jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {cfg.jobs}")
+    cells = []
     # setting A of this sweep: its preset's own values (the paper preset: the paper's A; the cpu preset
     # trains on K = 50), with the fixed --set overrides
     reference = setting_of(config.override(config.presets(cfg.preset), list(cfg.sets)))
+    committed = committed_cells(Path(cfg.results) / task / cfg.name if cfg.results else None, test_ds)
+    plan = []  # (values, run_name, run_dir, configs, trained, Ns, committed cells or None)
     for values in cell_settings(cfg.grid, reference, cfg.vary):
         at_a = all(values[k] == reference[k] for k in values)
         run_name = "_".join(f"{k}{_label(v)}" for k, v in values.items()) or "default"
         run_dir = sweep_dir / run_name
-        overrides = list(cfg.sets) + [f"{TRAIN_KEYS[k]}={v}" for k, v in values.items()]
-        configs = config.override(config.presets(cfg.preset), overrides)
-        trained = run_dir
-        if cfg.reference_run and setting_of(configs) == reference:
-            trained = Path(cfg.reference_run)
+        configs = config.override(config.presets(cfg.preset), cell_overrides(cfg, values))
+        is_reference = bool(cfg.reference_run) and setting_of(configs) == reference
+        trained = Path(cfg.reference_run) if is_reference else run_dir
+        # Table 7's layout: N varied at A's training (which is also evaluated at A's N, the pairs' anchor),
+        # every other cell at A's N
+        ns = n_values if cfg.vary == "all" else sorted(set(n_values) | {reference["N"]}) if at_a else [reference["N"]]
+        kept = None
+        if not _is_trained(trained, cfg.model) and not all((run_dir / "eval" / f"{CELL_PREFIX}N{n}.json").exists()
+                                                           for n in ns):
+            # a fresh machine: the trained run is gone, its finished cells are in RESULTS (committed)
+            found = [committed.get(tuple(setting_of(configs, n).values())) for n in ns]
+            kept = found if all(found) else None
+        if kept is None and is_reference:
             check_reference_run(trained, task, cfg.model, configs)
-        else:
+        plan.append((values, run_name, run_dir, configs, trained, ns, kept))
+    vae_source = _shared_autoencoder(cfg, plan)
+    to_train = [e for e in plan if _to_train(e, cfg.model)]
+
+    def publish() -> dict:
+        # the cells so far, after each training: a sweep of hours leaves its finished cells in
+        # RESULTS (committed) even if this machine goes before the last one
+        out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
+               "grid": cfg.grid, "episodes": cfg.episodes, "reference": reference, "vary": cfg.vary,
+               "cells": list(cells)}
+        for folder in [sweep_dir] + ([Path(cfg.results) / task / cfg.name] if cfg.results else []):
+            write_sweep(out, folder)
+        return out
+
+    for values, run_name, run_dir, configs, trained, ns, kept in plan:
+        if kept is not None:
+            cells += kept
+            if progress:
+                for c in kept:
+                    print(f"  {task} " + " ".join(f"{k}={_label(c[k])}" for k in DEFAULTS)
+                          + f": {100 * c['success']:.1f}% (committed in {cfg.results})", flush=True)
+            out = publish()
+            continue
+        if cfg.jobs > 1 and to_train and to_train[0][2] == run_dir:
+            # the next `jobs` cells to train, side by side; each is evaluated (and published) as the
+            # loop reaches it, so a sweep cut short keeps every finished batch's cells
+            batch, to_train = to_train[:cfg.jobs], to_train[cfg.jobs:]
+            train_side_by_side(cfg, task, batch, vae_source, sweep_dir, progress)
+            vae_source = vae_source or (batch[0][2] if "vae" in methods.stages(cfg.model) else None)
+        if trained == run_dir:
             # the autoencoder ignores K, L, T: the first cell trains it, the others start from it
-            shared = {"vae_from": vae_source} if vae_source is not None and "vae" in methods.stages(cfg.model) else {}
+            shared = ({"vae_from": vae_source} if vae_source is not None and Path(vae_source) != run_dir
+                      and "vae" in methods.stages(cfg.model) else {})
             methods.module(cfg.model).train(task, cfg.data, run_dir, configs, cfg.preset, progress=progress, **shared)
         if (trained / "vae").exists():
             vae_source = vae_source or trained
         planner = None
-        # Table 7's layout: N varied at A's training (which is also evaluated at A's N, the pairs' anchor),
-        # every other cell at A's N
-        ns = n_values if cfg.vary == "all" else sorted(set(n_values) | {reference["N"]}) if at_a else [reference["N"]]
         for n in ns:
             name = f"{CELL_PREFIX}N{n}"
             f = run_dir / "eval" / f"{name}.json"  # in the sweep's folder, also for a reference run's cell
@@ -136,7 +184,8 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
             full = setting_of(configs, n)  # what this cell trained with, not the paper's defaults
             cells.append({**full, "run": str(trained), "success": result["success_rate"],
                           "table": result["table"], "seeds": result["seeds"],
-                          "outcomes": [int(x) for x in result["success"]]})
+                          "outcomes": [int(x) for x in result["success"]],
+                          "test_fingerprint": test_ds.fingerprint, "vae_trace": vae_trace(trained)})
             if progress:
                 print(f"  {task} " + " ".join(f"{k}={_label(full[k])}" for k in DEFAULTS)
                       + f": {100 * result['success_rate']:.1f}%", flush=True)
@@ -144,14 +193,111 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         # cap on memory mappings (see readjax._runtime).
         del planner
         _runtime.release_compiled_if_crowded()
-        # the cells so far, after each training: a sweep of hours leaves its finished cells in
-        # RESULTS (committed) even if this machine goes before the last one
-        out = {"task": task, "code": tasks.code_of(task), "model": cfg.model, "preset": cfg.preset,
-               "grid": cfg.grid, "episodes": cfg.episodes, "reference": reference, "vary": cfg.vary,
-               "cells": list(cells)}
-        for folder in [sweep_dir] + ([Path(cfg.results) / task / cfg.name] if cfg.results else []):
-            write_sweep(out, folder)
+        out = publish()
     return out
+
+
+def cell_overrides(cfg: SweepConfig, values: dict) -> list[str]:
+    """The config overrides a cell trains with: the sweep's --set, then the cell's K / L / T."""
+    return list(cfg.sets) + [f"{TRAIN_KEYS[k]}={v}" for k, v in values.items()]
+
+
+def _is_trained(run: Path, model: str) -> bool:
+    """Whether every stage of ``model`` is finished in ``run`` on this machine."""
+    return all(stage_folder.is_finished(Path(run) / s) for s in methods.stages(model))
+
+
+def committed_cells(folder: Path | None, test_ds) -> dict[tuple, dict]:
+    """The cells of a sweep committed in ``folder`` (RESULTS/<task>/<name>/sweep.json) measured on
+    ``test_ds``'s episodes (same test fingerprint and seeds), by (N, K, L, T). A cell recorded
+    without its test fingerprint is not taken: nothing then says which episodes it ran."""
+    f = folder / "sweep.json" if folder is not None else None
+    if f is None or not f.exists():
+        return {}
+    seeds = [int(x) for x in test_ds.seeds] if hasattr(test_ds, "seeds") else None
+    out = {}
+    for c in json.loads(f.read_text()).get("cells", []):
+        if c.get("test_fingerprint") != test_ds.fingerprint or "outcomes" not in c:
+            continue
+        if seeds is not None and [int(x) for x in c["seeds"]] != seeds:
+            continue
+        out[tuple(c[k] for k in DEFAULTS)] = c
+    return out
+
+
+def vae_trace(run: Path) -> str | None:
+    """A digest of the run's autoencoder training trace (every logged loss of ``vae/metrics.jsonl``,
+    wall-clock times left out), or None for a method without one. Two cells with the same trace
+    decode with the same autoencoder: the sweep's pairs then differ only in what the cell varies,
+    also when a cell was trained on another machine from an autoencoder trained again there."""
+    rows = stage_folder.read_metrics(Path(run) / "vae")
+    if not rows:
+        return None
+    h = hashlib.sha256()
+    for r in rows:
+        h.update(json.dumps({k: v for k, v in r.items() if k != "time_s"}, sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+def _to_train(entry: tuple, model: str) -> bool:
+    """Whether a sweep plan's cell is still to train here: not a reference run, not taken from the
+    committed results, not finished."""
+    _, _, run_dir, _, trained, _, kept = entry
+    return kept is None and trained == run_dir and not _is_trained(run_dir, model)
+
+
+def _shared_autoencoder(cfg: SweepConfig, plan: list) -> Path | None:
+    """The run whose finished autoencoder the cells to train start from: the reference run's or the
+    first cell's already on disk; None: the first cell to train trains it."""
+    if "vae" not in methods.stages(cfg.model):
+        return None
+    to_train = [e for e in plan if _to_train(e, cfg.model)]
+    if cfg.reference_run:
+        if stage_folder.is_finished(Path(cfg.reference_run) / "vae"):
+            return Path(cfg.reference_run)
+        if to_train:
+            raise ValueError(f"--reference-run {cfg.reference_run}: no finished autoencoder stage there, and "
+                             f"the cells to train start from it; train it again (`experiments.train --stage vae` "
+                             f"with the run's name and --set), or let the grid's pipeline do it")
+        return None
+    return next((Path(t) for *_, t, _, _ in plan if stage_folder.is_finished(Path(t) / "vae")), None)
+
+
+def train_side_by_side(cfg: SweepConfig, task: str, plan: list, vae_source: Path | None, sweep_dir: Path,
+                       progress: bool) -> None:
+    """Train every cell of ``plan`` still to train, ``cfg.jobs`` at once, each an ``experiments.train``
+    process (logs in SWEEP/logs/). Cells share ``vae_source``'s autoencoder; without one the first
+    cell's is trained first, alone, and the others start from it."""
+    python = sys.executable
+    stages = methods.stages(cfg.model)
+
+    def argv(run_name: str, values: dict, extra=()) -> list[str]:
+        sets = sum((["--set", s] for s in cell_overrides(cfg, values)), [])
+        return [python, "-m", "experiments.train", "--task", task, "--model", cfg.model, "--preset", cfg.preset,
+                "--name", f"{cfg.name}/{run_name}", "--data", str(cfg.data), "--out", str(cfg.out),
+                "--quiet", *sets, *extra]
+
+    todo = [entry[:3] for entry in plan if _to_train(entry, cfg.model)]  # (values, run name, run folder)
+    if not todo:
+        return
+    steps, first_vae = [], None
+    if vae_source is None and "vae" in stages:
+        values, run_name, run_dir = todo[0]
+        first_vae = scheduler.Step("train", task, f"train {run_name} (autoencoder only)",
+                                   argv(run_name, values, ["--stage", "vae"]),
+                                   made=lambda d=run_dir: stage_folder.is_finished(d / "vae"), resumes=True)
+        steps.append(first_vae)
+        vae_source = run_dir
+    for values, run_name, run_dir in todo:
+        extra = ["--vae-from", str(vae_source)] if vae_source is not None and run_dir != vae_source else []
+        step = scheduler.Step("train", task, f"train {run_name}", argv(run_name, values, extra),
+                              made=lambda d=run_dir: all(stage_folder.is_finished(d / s) for s in stages),
+                              resumes=True, progress=lambda d=run_dir: stage_folder.progress(d))
+        if first_vae is not None:
+            step.needs.append(first_vae)
+        steps.append(step)
+    scheduler.run_steps(steps, log=print if progress else (lambda _: None), jobs=cfg.jobs,
+                        log_dir=sweep_dir / "logs")
 
 
 def cell_settings(grid: dict, reference: dict, vary: str = "all") -> list[dict]:

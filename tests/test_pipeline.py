@@ -357,7 +357,7 @@ def test_missing_run_is_a_clear_error(tmp_path, capsys):
     assert "not a training run" in capsys.readouterr().err
 
 
-def test_sweep_resumes_and_reports(run, tmp_path):
+def test_sweep_resumes_and_reports(run, tmp_path, monkeypatch):
     from experiments import report as report_cli
     from experiments import sweep as sweep_cli
 
@@ -392,6 +392,27 @@ def test_sweep_resumes_and_reports(run, tmp_path):
     # a root holding only a sweep: its cells appear in the sweep's Table-7 layout, not as method rows
     assert "## Sweep: read on reach_target (2 episodes per cell)" in text and "| setting | N | K | L | T | RT |" in text
     assert "| method |" not in text and str(sweep_dir / "L0.3" / "eval" / "sweep_N0.json") in text
+    # every cell records its test episodes and its autoencoder (one, shared: the same training trace)
+    assert {c["test_fingerprint"] for c in cells} == {store.load_dataset(data / "reach_target" / "test",
+                                                                          limit=2).fingerprint}
+    assert len({c["vae_trace"] for c in cells}) == 1 and len(cells[0]["vae_trace"]) == 16
+    # a fresh machine (the sweep's runs gone): the committed cells are kept, nothing trains or evaluates
+    from readjax import methods, sweep as sweep_lib
+    shutil.rmtree(sweep_dir)
+    monkeypatch.setattr(sweep_lib.evaluation, "evaluate", lambda *a, **k: pytest.fail("evaluated again"))
+    monkeypatch.setattr(methods.module("read"), "train", lambda *a, **k: pytest.fail("trained again"))
+    assert _cli.run(sweep_cli.main, argv) == 0
+    assert json.loads((sweep_dir / "sweep.json").read_text())["cells"] == cells
+    # ... but only cells measured on these episodes: one committed on other episodes trains again
+    committed_json = committed / "sweep.json"
+    moved = json.loads(committed_json.read_text())
+    moved["cells"][0]["test_fingerprint"] = "0" * 16
+    committed_json.write_text(json.dumps(moved))
+    shutil.rmtree(sweep_dir)
+    with pytest.raises(pytest.fail.Exception, match="trained again"):
+        sweep_lib.run_sweep(sweep_lib.SweepConfig(task="RT", grid={"N": [0, 1], "L": [0.3, 0.5]}, data=str(data),
+                                                  out=str(tmp_path), episodes=2, batch_size=2, sets=tuple(TINY),
+                                                  results=str(tmp_path / "committed")), progress=False)
 
 
 def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, tmp_path, monkeypatch):
@@ -439,6 +460,39 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
         reused = json.loads((tmp_path / "reach_target" / "again" / "default" / "eval" / f"sweep_N{c['N']}.json")
                             .read_text())  # a grid of N alone: A's folder is "default"
         assert reused["reused_from"] == str(ref / "eval" / f"spe_N{c['N']}.json")
+
+
+def test_a_sweep_trains_its_cells_side_by_side(run, tmp_path, monkeypatch):
+    """--jobs 2: each cell still to train is an `experiments.train` process with the cell's overrides,
+    started from the shared autoencoder (the reference run's, or else the first cell's, trained alone
+    first); then the cells are evaluated as one job would. End to end with a real process, and the
+    steps of a sweep without a reference run."""
+    from readjax import scheduler, sweep as sweep_lib
+
+    data, trained = run
+    cfg = sweep_lib.SweepConfig(task="RT", grid={"T": [0.5]}, data=str(data), out=str(tmp_path), episodes=2,
+                                batch_size=2, sets=tuple(TINY), reference_run=str(trained), vary="one", jobs=2)
+    out = sweep_lib.run_sweep(cfg, progress=False)
+    cell = tmp_path / "reach_target" / "sweep" / "T0.5"
+    assert [(c["T"], c["run"]) for c in out["cells"]] == [(2.0, str(trained)), (0.5, str(cell))]
+    assert (cell / "read" / "stop.json").exists() and (tmp_path / "reach_target" / "sweep" / "logs").is_dir()
+    assert json.loads((cell / "run.json").read_text())["configs"]["sde"]["theta1"] == 0.5
+    assert out["cells"][0]["vae_trace"] == out["cells"][1]["vae_trace"]  # started from A's autoencoder
+
+    captured = []
+    monkeypatch.setattr(scheduler, "run_steps", lambda steps, **kw: captured.append((steps, kw)))
+    fresh = dataclasses.replace(cfg, grid={"T": [0.5, 2.0]}, reference_run=None, name="fresh")
+    plan = [({"T": t}, f"T{t:g}", tmp_path / "reach_target" / "fresh" / f"T{t:g}", None,
+             tmp_path / "reach_target" / "fresh" / f"T{t:g}", [100], None) for t in (2.0, 0.5)]
+    sweep_lib.train_side_by_side(fresh, "reach_target", plan, None, tmp_path / "reach_target" / "fresh", False)
+    (steps, kw), = captured
+    assert kw["jobs"] == 2 and [s.label for s in steps] == ["train T2 (autoencoder only)", "train T2", "train T0.5"]
+    first = str(tmp_path / "reach_target" / "fresh" / "T2")
+    assert steps[0].argv[steps[0].argv.index("--stage") + 1] == "vae" and "--vae-from" not in steps[1].argv
+    assert steps[2].argv[steps[2].argv.index("--vae-from") + 1] == first
+    assert all(s.needs == [steps[0]] for s in steps[1:])
+    args = train_cli.parser().parse_args(steps[2].argv[3:])  # what experiments.train will train with
+    assert args.set == sweep_lib.cell_overrides(fresh, {"T": 0.5}) and args.name == "fresh/T0.5"
 
 
 def test_ae_report_on_the_trained_run(run, tmp_path, capsys):
