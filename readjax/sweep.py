@@ -371,8 +371,13 @@ def format_table7(sweep: dict) -> str:
     a = next((c for c in sweep["cells"] if _is_default(c, reference) and "outcomes" in c), None)
     lines = [f"| setting | N | K | L | T | {code} |" + (" vs A |" if a else ""),
              "|---|---|---|---|---|---|" + ("---|" if a else "")]
-    for i, c in enumerate(sweep["cells"]):
-        tag = "A (default)" if _is_default(c, reference) else chr(ord("B") + i) if i < 25 else str(i)
+    others = 0  # the other settings are lettered B, C, ... in order, A's place skipped
+    for c in sweep["cells"]:
+        if _is_default(c, reference):
+            tag = "A (default)"
+        else:
+            tag = chr(ord("B") + others) if others < 25 else str(others + 1)
+            others += 1
         row = f"| {tag} | {c['N']} | {c['K']} | {_label(c['L'])} | {_label(c['T'])} | {100 * c['success']:.1f} |"
         if a:
             vs = ("–" if c is a or "outcomes" not in c else

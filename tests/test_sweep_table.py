@@ -40,6 +40,9 @@ def test_setting_a_is_the_sweeps_own_preset(tmp_path):
     lines = sweep.format_table7(sw).splitlines()
     assert lines[2] == "| B | 100 | 3 | 0.5 | 2 | 25.0 | +0 / -3, p=0.25 |"
     assert lines[3] == "| A (default) | 100 | 50 | 0.5 | 2 | 100.0 | – |"
+    # settings after A go on from where the letters before it stopped
+    later = {**sw, "cells": sw["cells"][::-1] + [_cell(100, [0, 1, 1, 1], K=10)]}
+    assert [ln.split(" | ")[0] for ln in sweep.format_table7(later).splitlines()[2:]] == ["| A (default)", "| B", "| C"]
 
 
 def test_table7_settings_vary_one_key_at_a_time():
