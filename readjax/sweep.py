@@ -6,8 +6,8 @@ autoencoder stage does not depend on them and is trained once and shared. Every 
 (a training run, an evaluation) is kept on disk and skipped when the sweep is run again; with
 ``results`` set, a cell whose run is not on this machine (a fresh one) but whose evaluations are
 committed there on the same test episodes is taken from there, not trained again. ``jobs`` > 1 trains
-the cells side by side (``experiments.train`` processes through the grid's step runner) before
-evaluating them one after the other.
+the cells side by side, ``jobs`` at a time (``experiments.train`` processes through the grid's step
+runner), and evaluates and publishes each batch as it finishes.
 """
 
 from __future__ import annotations
