@@ -97,14 +97,14 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
     n_values = cfg.grid.get("N", [DEFAULTS["N"]])
     if cfg.vary not in ("all", "one"):
         raise ValueError(f"vary must be 'all' or 'one', got {cfg.vary!r}")
+    if cfg.jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {cfg.jobs}")
     test_dir = store.split_dir(cfg.data, task, "test")
     if not test_dir.exists() or store.read_progress(test_dir).kept < cfg.episodes:
         meta = store.read_meta(store.split_dir(cfg.data, task, "train")) or {}
         generate(GenerateConfig(task=task, split="test", episodes=cfg.episodes, out=cfg.data,
                                 image_size=meta.get("image_size", 64)), progress=progress)
     test_ds = store.load_dataset(test_dir, limit=cfg.episodes)
-    if cfg.jobs < 1:
-        raise ValueError(f"jobs must be >= 1, got {cfg.jobs}")
     cells = []
     # setting A of this sweep: its preset's own values (the paper preset: the paper's A; the cpu preset
     # trains on K = 50), with the fixed --set overrides
@@ -148,8 +148,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
             cells += kept
             if progress:
                 for c in kept:
-                    print(f"  {task} " + " ".join(f"{k}={_label(c[k])}" for k in DEFAULTS)
-                          + f": {100 * c['success']:.1f}% (committed in {cfg.results})", flush=True)
+                    print(_cell_line(task, c, c["success"]) + f" (committed in {cfg.results})", flush=True)
             out = publish()
             continue
         if cfg.jobs > 1 and to_train and to_train[0][2] == run_dir:
@@ -157,7 +156,6 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
             # loop reaches it, so a sweep cut short keeps every finished batch's cells
             batch, to_train = to_train[:cfg.jobs], to_train[cfg.jobs:]
             train_side_by_side(cfg, task, batch, vae_source, sweep_dir, progress)
-            vae_source = vae_source or (batch[0][2] if "vae" in methods.stages(cfg.model) else None)
         if trained == run_dir:
             # the autoencoder ignores K, L, T: the first cell trains it, the others start from it
             shared = ({"vae_from": vae_source} if vae_source is not None and Path(vae_source) != run_dir
@@ -187,14 +185,18 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
                           "outcomes": [int(x) for x in result["success"]],
                           "test_fingerprint": test_ds.fingerprint, "vae_trace": vae_trace(trained)})
             if progress:
-                print(f"  {task} " + " ".join(f"{k}={_label(full[k])}" for k in DEFAULTS)
-                      + f": {100 * result['success_rate']:.1f}%", flush=True)
+                print(_cell_line(task, full, result["success_rate"]), flush=True)
         # Each cell compiles its own programs: free them before the process nears the kernel's
         # cap on memory mappings (see readjax._runtime).
         del planner
         _runtime.release_compiled_if_crowded()
         out = publish()
     return out
+
+
+def _cell_line(task: str, setting: dict, success: float) -> str:
+    """A cell's progress line: its N, K, L, T and success."""
+    return f"  {task} " + " ".join(f"{k}={_label(setting[k])}" for k in DEFAULTS) + f": {100 * success:.1f}%"
 
 
 def cell_overrides(cfg: SweepConfig, values: dict) -> list[str]:
@@ -214,12 +216,11 @@ def committed_cells(folder: Path | None, test_ds) -> dict[tuple, dict]:
     f = folder / "sweep.json" if folder is not None else None
     if f is None or not f.exists():
         return {}
-    seeds = [int(x) for x in test_ds.seeds] if hasattr(test_ds, "seeds") else None
+    seeds = [int(x) for x in test_ds.seeds]
     out = {}
     for c in json.loads(f.read_text()).get("cells", []):
-        if c.get("test_fingerprint") != test_ds.fingerprint or "outcomes" not in c:
-            continue
-        if seeds is not None and [int(x) for x in c["seeds"]] != seeds:
+        if (c.get("test_fingerprint") != test_ds.fingerprint or "outcomes" not in c
+                or [int(x) for x in c["seeds"]] != seeds):
             continue
         out[tuple(c[k] for k in DEFAULTS)] = c
     return out
@@ -251,11 +252,10 @@ def _shared_autoencoder(cfg: SweepConfig, plan: list) -> Path | None:
     first cell's already on disk; None: the first cell to train trains it."""
     if "vae" not in methods.stages(cfg.model):
         return None
-    to_train = [e for e in plan if _to_train(e, cfg.model)]
     if cfg.reference_run:
         if stage_folder.is_finished(Path(cfg.reference_run) / "vae"):
             return Path(cfg.reference_run)
-        if to_train:
+        if any(_to_train(e, cfg.model) for e in plan):
             raise ValueError(f"--reference-run {cfg.reference_run}: no finished autoencoder stage there, and "
                              f"the cells to train start from it; train it again (`experiments.train --stage vae` "
                              f"with the run's name and --set), or let the grid's pipeline do it")
@@ -269,7 +269,6 @@ def train_side_by_side(cfg: SweepConfig, task: str, plan: list, vae_source: Path
     process (logs in SWEEP/logs/). Cells share ``vae_source``'s autoencoder; without one the first
     cell's is trained first, alone, and the others start from it."""
     python = sys.executable
-    stages = methods.stages(cfg.model)
 
     def argv(run_name: str, values: dict, extra=()) -> list[str]:
         sets = sum((["--set", s] for s in cell_overrides(cfg, values)), [])
@@ -281,7 +280,7 @@ def train_side_by_side(cfg: SweepConfig, task: str, plan: list, vae_source: Path
     if not todo:
         return
     steps, first_vae = [], None
-    if vae_source is None and "vae" in stages:
+    if vae_source is None and "vae" in methods.stages(cfg.model):
         values, run_name, run_dir = todo[0]
         first_vae = scheduler.Step("train", task, f"train {run_name} (autoencoder only)",
                                    argv(run_name, values, ["--stage", "vae"]),
@@ -291,7 +290,7 @@ def train_side_by_side(cfg: SweepConfig, task: str, plan: list, vae_source: Path
     for values, run_name, run_dir in todo:
         extra = ["--vae-from", str(vae_source)] if vae_source is not None and run_dir != vae_source else []
         step = scheduler.Step("train", task, f"train {run_name}", argv(run_name, values, extra),
-                              made=lambda d=run_dir: all(stage_folder.is_finished(d / s) for s in stages),
+                              made=lambda d=run_dir: _is_trained(d, cfg.model),
                               resumes=True, progress=lambda d=run_dir: stage_folder.progress(d))
         if first_vae is not None:
             step.needs.append(first_vae)
