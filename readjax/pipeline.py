@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from readjax import methods, result_record, stage_folder, tasks, verification
+from readjax import methods, result_record, scheduler, stage_folder, tasks, verification
 from readjax.scheduler import TIMING_FILE, PipelineError, Step
 
 
@@ -296,10 +296,9 @@ def finished_evaluation(results: Path, task: str, run_name: str, method: str, re
 
 def train_argv(cfg: PipelineConfig, task: str, label: str, python: str) -> list[str]:
     """The ``experiments.train`` command of a ``label`` run of this grid on ``task``."""
-    sets = sum((["--set", s] for s in cfg.overrides_of(label)), [])
-    return [python, "-m", "experiments.train", "--task", task, "--model", cfg.method_of(label),
-            "--name", cfg.run_name(label), "--preset", cfg.preset, "--data", str(Path(cfg.data)),
-            "--out", str(Path(cfg.runs)), "--quiet"] + sets
+    return scheduler.train_command(python, task=task, model=cfg.method_of(label), preset=cfg.preset,
+                                   name=cfg.run_name(label), data=cfg.data, out=cfg.runs,
+                                   overrides=cfg.overrides_of(label))
 
 
 def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:

@@ -25,6 +25,16 @@ from pathlib import Path
 from typing import Callable
 
 
+def train_command(python: str, *, task: str, model: str, preset: str, name: str, data, out,
+                  overrides=(), extra=()) -> list[str]:
+    """The ``experiments.train`` process of one run (output quiet: its log is the step's log file).
+    The one home of that command line, for the grid's and the sweep's trainings alike: ``overrides``
+    are the ``--set`` fields of the run's recipe, ``extra`` other flags (``--stage``, ``--vae-from``)."""
+    sets = [a for s in overrides for a in ("--set", s)]
+    return [python, "-m", "experiments.train", "--task", task, "--model", model, "--preset", preset,
+            "--name", name, "--data", str(Path(data)), "--out", str(Path(out)), "--quiet", *sets, *extra]
+
+
 class PipelineError(RuntimeError):
     """A step failed, or a split's ground truth does not replay at 100 %."""
 

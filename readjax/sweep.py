@@ -180,7 +180,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
                 result = evaluation.evaluate(planner, test_ds, ecfg, out_dir=run_dir / "eval", name=name,
                                              progress=progress)
             full = setting_of(configs, n)  # what this cell trained with, not the paper's defaults
-            cells.append({**full, "run": str(trained), "success": result["success_rate"],
+            cells.append({**full, "run": run_label(trained, cfg.out), "success": result["success_rate"],
                           "table": result["table"], "seeds": result["seeds"],
                           "outcomes": [int(x) for x in result["success"]],
                           "test_fingerprint": test_ds.fingerprint, "vae_trace": vae_trace(trained)})
@@ -192,6 +192,15 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
         _runtime.release_compiled_if_crowded()
         out = publish()
     return out
+
+
+def run_label(run: Path, out) -> str:
+    """How a cell names the run it evaluated: relative to the runs root (``reach_target/table7/K3_L0.5_T2``)
+    where it lies under it, so that a committed sweep names no machine's folders; else as given."""
+    try:
+        return str(Path(run).resolve().relative_to(Path(out).resolve()))
+    except ValueError:
+        return str(run)
 
 
 def _cell_line(task: str, setting: dict, success: float) -> str:
@@ -271,10 +280,9 @@ def train_side_by_side(cfg: SweepConfig, task: str, plan: list, vae_source: Path
     python = sys.executable
 
     def argv(run_name: str, values: dict, extra=()) -> list[str]:
-        sets = sum((["--set", s] for s in cell_overrides(cfg, values)), [])
-        return [python, "-m", "experiments.train", "--task", task, "--model", cfg.model, "--preset", cfg.preset,
-                "--name", f"{cfg.name}/{run_name}", "--data", str(cfg.data), "--out", str(cfg.out),
-                "--quiet", *sets, *extra]
+        return scheduler.train_command(python, task=task, model=cfg.model, preset=cfg.preset,
+                                       name=f"{cfg.name}/{run_name}", data=cfg.data, out=cfg.out,
+                                       overrides=cell_overrides(cfg, values), extra=extra)
 
     todo = [entry[:3] for entry in plan if _to_train(entry, cfg.model)]  # (values, run name, run folder)
     if not todo:

@@ -431,7 +431,7 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
     cells = [(c["N"], c["T"], c["run"]) for c in out["cells"]]
     sweep_dir = tmp_path / "reach_target" / "sweep"
     assert cells == [(0, 2.0, str(trained)), (1, 2.0, str(trained)), (100, 2.0, str(trained)),
-                     (100, 0.5, str(sweep_dir / "T0.5"))]
+                     (100, 0.5, "reach_target/sweep/T0.5")]
     assert not (sweep_dir / "T2" / "vae").exists() and (sweep_dir / "T2" / "eval" / "sweep_N1.json").exists()
     assert not (trained / "eval" / "sweep_N1.json").exists()  # the reference run's folder is left as it was
     assert json.loads((sweep_dir / "T0.5" / "vae" / "stage.json").read_text())["dataset_fingerprint"] == \
@@ -474,7 +474,7 @@ def test_a_sweep_trains_its_cells_side_by_side(run, tmp_path, monkeypatch):
                                 batch_size=2, sets=tuple(TINY), reference_run=str(trained), vary="one", jobs=2)
     out = sweep_lib.run_sweep(cfg, progress=False)
     cell = tmp_path / "reach_target" / "sweep" / "T0.5"
-    assert [(c["T"], c["run"]) for c in out["cells"]] == [(2.0, str(trained)), (0.5, str(cell))]
+    assert [(c["T"], c["run"]) for c in out["cells"]] == [(2.0, str(trained)), (0.5, "reach_target/sweep/T0.5")]
     assert (cell / "read" / "stop.json").exists() and (tmp_path / "reach_target" / "sweep" / "logs").is_dir()
     assert json.loads((cell / "run.json").read_text())["configs"]["sde"]["theta1"] == 0.5
     assert out["cells"][0]["vae_trace"] == out["cells"][1]["vae_trace"]  # started from A's autoencoder

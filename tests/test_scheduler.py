@@ -111,3 +111,19 @@ def test_a_step_that_exits_0_without_its_result_stops_the_grid_saying_what_is_mi
                           made=lambda: False)
     with pytest.raises(scheduler.PipelineError, match=r"evaluate x` ran but its result is not there \(no record"):
         scheduler.run_steps([step], jobs=jobs, log_dir=tmp_path / "logs", poll=0.05)
+
+
+def test_the_train_command_is_one_that_experiments_train_reads_back_field_for_field():
+    """The grid and the sweep start their trainings through ``train_command``: what it writes must be
+    what ``experiments.train`` parses, each ``--set`` kept in order and the extra flags passed on."""
+    from experiments import train
+
+    argv = scheduler.train_command("py", task="RT", model="read", preset="cpu", name="table7/K3_L0.5_T2",
+                                   data="d", out="o", overrides=["retrieval.k=3", "refine.N=10"],
+                                   extra=["--vae-from", "o/RT/ref", "--stage", "read"])
+    assert argv[:3] == ["py", "-m", "experiments.train"]
+    args = train.parser().parse_args(argv[3:])
+    assert (args.task, args.model, args.preset, args.name, args.data, args.out) == (
+        "RT", "read", "cpu", "table7/K3_L0.5_T2", "d", "o")
+    assert args.set == ["retrieval.k=3", "refine.N=10"]
+    assert (args.vae_from, args.stage, args.quiet) == ("o/RT/ref", "read", True)
