@@ -52,6 +52,24 @@ def test_read_against_a_baseline_pooled_over_tasks():
     assert swapped["READ > Deterministic"]["verdict"] == "not measured"  # run d holds no READ evaluation
 
 
+def test_a_pair_across_versions_of_a_test_split_is_kept_and_marked():
+    """Two sides run on the same seeds but on test splits simulated apart (fingerprints differ): the
+    same scenes, so the pair counts; the report marks the task and says why. Same version, or a
+    result that records none: no mark."""
+    runs = {"read": "r", "deterministic": "d"}
+    results = [_result("reach_target", "r", "read", [1] * 10), _result("reach_target", "d", "deterministic", [0] * 10, n=None),
+               _result("push_button", "r", "read", [1] * 4), _result("push_button", "d", "deterministic", [1] * 4, n=None)]
+    for r, fp in zip(results, ["aaaa", "bbbb", "cccc", "cccc"]):
+        r["test_fingerprint"] = fp
+    row = _by_claim(claims.evaluate_claims(results, runs, (SDE.update, SDE.rounds)))["READ > Deterministic"]
+    assert row["per_task"]["RT"][:2] == (10, 0) and row["other_split_versions"] == ["RT"]
+    text = "\n".join(claims.lines(results, runs))
+    assert f"RT{claims.VERSION_MARK} +10/-0" in text and f"PB{claims.VERSION_MARK}" not in text
+    assert "different versions" in text
+    del results[1]["test_fingerprint"]
+    assert "different versions" not in "\n".join(claims.lines(results, runs))
+
+
 def test_verdicts():
     assert claims.verdict("better", 12, 0, 0.0005) == "holds"
     assert claims.verdict("better", 0, 12, 0.0005) == "reversed"
