@@ -183,7 +183,8 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
             cells.append({**full, "run": run_label(trained, cfg.out), "success": result["success_rate"],
                           "table": result["table"], "seeds": result["seeds"],
                           "outcomes": [int(x) for x in result["success"]],
-                          "test_fingerprint": test_ds.fingerprint, "vae_trace": vae_trace(trained)})
+                          "test_fingerprint": test_ds.fingerprint, "vae_trace": vae_trace(trained),
+                          **cell_diagnostics(result)})
             if progress:
                 print(_cell_line(task, full, result["success_rate"]), flush=True)
         # Each cell compiles its own programs: free them before the process nears the kernel's
@@ -364,6 +365,36 @@ def write_sweep(sweep: dict, folder: Path) -> None:
     plot_sweep(sweep, folder / "sweep.png")
 
 
+START_BINS_CM = (3.0, 10.0)  # a cell's episodes by how far its own retrieval started: < 3, 3-10, > 10 cm
+
+
+def cell_diagnostics(result: dict) -> dict:
+    """What a cell keeps of its evaluation's failure records, so that the committed sweep says why a
+    setting loses, not only that it does: failures by mode, and each episode's start (its retrieved
+    motion's key-frame error, cm). Empty for an evaluation recorded before failure modes were."""
+    f = result.get("failures") or {}
+    out = {}
+    if "counts" in f:
+        out["failure_modes"] = dict(f["counts"])
+    if f.get("start_keyframe_error_cm") is not None:
+        out["start_error_cm"] = list(f["start_keyframe_error_cm"])
+    return out
+
+
+def by_start(cell: dict) -> str:
+    """``solved / episodes`` from starts in each of START_BINS_CM's ranges, e.g. ``29/30, 46/47, 11/23``."""
+    start, won = np.asarray(cell["start_error_cm"], float), np.asarray(cell["outcomes"], bool)
+    bins = np.digitize(start, START_BINS_CM)
+    return ", ".join(f"{int(won[bins == b].sum())}/{int((bins == b).sum())}" for b in range(len(START_BINS_CM) + 1))
+
+
+def _modes(cell: dict) -> str:
+    counts = cell.get("failure_modes")
+    if counts is None:
+        return ""
+    return ", ".join(f"{m} {n}" for m, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))) or "none"
+
+
 def _is_default(cell: dict, reference: dict) -> bool:
     return all(cell[k] == v for k, v in reference.items())
 
@@ -372,12 +403,19 @@ def format_table7(sweep: dict) -> str:
     """The layout of the paper's Table 7: setting, N, K, L, T, success (%); where the cells carry
     their per-episode outcomes and the sweep holds its setting A (``reference``: its preset's values
     at N = 100; the paper's A for a sweep recorded without one), each other cell against A on the
-    same episodes (+ episodes only it solves / - only A solves, exact McNemar p)."""
+    same episodes (+ episodes only it solves / - only A solves, exact McNemar p). Where the cells keep
+    their evaluations' failure records (:func:`cell_diagnostics`): the episodes solved from near,
+    middling and far starts, and the failures by mode."""
     code = sweep["code"]
     reference = sweep.get("reference", DEFAULTS)
     a = next((c for c in sweep["cells"] if _is_default(c, reference) and "outcomes" in c), None)
-    lines = [f"| setting | N | K | L | T | {code} |" + (" vs A |" if a else ""),
-             "|---|---|---|---|---|---|" + ("---|" if a else "")]
+    starts = any("start_error_cm" in c and "outcomes" in c for c in sweep["cells"])
+    modes = any("failure_modes" in c for c in sweep["cells"])
+    lo, hi = (_label(x) for x in START_BINS_CM)
+    lines = [f"| setting | N | K | L | T | {code} |" + (" vs A |" if a else "")
+             + (f" solved from starts < {lo} / {lo}-{hi} / > {hi} cm |" if starts else "")
+             + (" failures by mode |" if modes else ""),
+             "|---|---|---|---|---|---|" + ("---|" if a else "") + ("---|" if starts else "") + ("---|" if modes else "")]
     others = 0  # the other settings are lettered B, C, ... in order, A's place skipped
     for c in sweep["cells"]:
         if _is_default(c, reference):
@@ -390,6 +428,10 @@ def format_table7(sweep: dict) -> str:
             vs = ("–" if c is a or "outcomes" not in c else
                   discordant({"seeds": c["seeds"], "success": c["outcomes"]}, {"seeds": a["seeds"], "success": a["outcomes"]}))
             row += f" {vs} |"
+        if starts:
+            row += f" {by_start(c) if 'start_error_cm' in c and 'outcomes' in c else ''} |"
+        if modes:
+            row += f" {_modes(c)} |"
         lines.append(row)
     return "\n".join(lines) + "\n"
 

@@ -75,3 +75,25 @@ def test_a_reference_runs_evaluation_is_reused_only_for_the_same_cell(tmp_path):
                    {"eval_config": {**base["eval_config"], "image_noise": 0.05}}):
         f.write_text(json.dumps({**base, **change}))
         assert reusable_evaluation(tmp_path, "read", 10, test_ds) is None, change
+
+
+def test_cells_say_why_a_setting_loses_starts_and_failure_modes():
+    """A cell keeps its evaluation's failure counts and per-episode starts; the table counts the
+    episodes solved from near (< 3 cm), middling and far (> 10 cm) starts, and lists the failures by
+    mode, most frequent first. An evaluation without failure records adds nothing."""
+    result = {"failures": {"counts": {"depth": 1, "wrong place": 2},
+                           "start_keyframe_error_cm": [1.0, 2.9, 3.0, 9.9, 10.0, 50.0]}}
+    diag = sweep.cell_diagnostics(result)
+    assert diag == {"failure_modes": {"depth": 1, "wrong place": 2}, "start_error_cm": [1.0, 2.9, 3.0, 9.9, 10.0, 50.0]}
+    assert sweep.cell_diagnostics({}) == {}
+    a = {**_cell(100, [1, 1, 1, 0, 0, 0]), **diag}
+    assert sweep.by_start(a) == "2/2, 1/2, 0/2"
+    b = {**_cell(1, [1, 1, 1, 1, 1, 1]), "failure_modes": {}, "start_error_cm": diag["start_error_cm"]}
+    sw = {"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [1, 100]}, "episodes": 6,
+          "cells": [b, a]}
+    lines = sweep.format_table7(sw).splitlines()
+    assert lines[0].endswith("| vs A | solved from starts < 3 / 3-10 / > 10 cm | failures by mode |")
+    assert lines[2].endswith("| 2/2, 2/2, 2/2 | none |")
+    assert lines[3].endswith("| – | 2/2, 1/2, 0/2 | wrong place 2, depth 1 |")
+    old = {**sw, "cells": [_cell(1, [1] * 6), _cell(100, [1] * 6)]}
+    assert "failures by mode" not in sweep.format_table7(old) and "starts" not in sweep.format_table7(old)
