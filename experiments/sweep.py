@@ -2,14 +2,16 @@
 
 N (refinement steps) is test-time only and reuses a trained model; K, L (lambda) and T (theta1)
 retrain (the autoencoder is shared). Finished cells are kept and skipped when re-run.
-Writes OUT/<task>/<name>/sweep.json, table.md and sweep.png.
+Writes OUT/<task>/<name>/sweep.json, table.md and sweep.png. Each cell keeps its evaluation's failures by
+mode and each episode's start (its retrieved motion's key-frame error): the table counts the episodes
+solved from starts < 3 / 3-10 / > 10 cm beside the failures, so it says why a setting loses.
 
 examples:
   python -m experiments.sweep --task reach_target --grid N=0,1,10,100 L=0.1,0.5,1.0
   python -m experiments.sweep --task PB --grid N=1,10,100 --episodes 50
   python -m experiments.sweep --task RT --grid N=0,1,10,100 --results results/   # committed, with paired tests vs A
   # Table 7: each key alone from A (A not retrained), two trainings at once
-  python -m experiments.sweep --task PB --grid N=0,1,10,100 K=1,3,10 L=0.1,0.5,1.0 T=0.1,2.0 --vary one \\
+  python -m experiments.sweep --task PB --grid N=0,1,10,100 K=1,3,10 L=0.1,0.5,1.0 T=0.1,2.0,20.0 --vary one \\
       --reference-run runs/push_button/read --results results/ --jobs 2
 
 A sweep is resumable across machines: with --results, a cell whose run is gone (a fresh machine) but
