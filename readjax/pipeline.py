@@ -31,8 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from readjax import methods, result_record, scheduler, stage_folder, tasks, verification
-from readjax.scheduler import TIMING_FILE, PipelineError, Step
+from readjax import methods, result_record, stage_folder, tasks, verification
+from readjax.scheduler import TIMING_FILE, PipelineError, Step, train_command
 
 
 @dataclass(frozen=True)
@@ -296,9 +296,8 @@ def finished_evaluation(results: Path, task: str, run_name: str, method: str, re
 
 def train_argv(cfg: PipelineConfig, task: str, label: str, python: str) -> list[str]:
     """The ``experiments.train`` command of a ``label`` run of this grid on ``task``."""
-    return scheduler.train_command(python, task=task, model=cfg.method_of(label), preset=cfg.preset,
-                                   name=cfg.run_name(label), data=cfg.data, out=cfg.runs,
-                                   overrides=cfg.overrides_of(label))
+    return train_command(python, task=task, model=cfg.method_of(label), preset=cfg.preset, name=cfg.run_name(label),
+                         data=cfg.data, out=cfg.runs, overrides=cfg.overrides_of(label))
 
 
 def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:

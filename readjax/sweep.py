@@ -381,11 +381,15 @@ def cell_diagnostics(result: dict) -> dict:
     return out
 
 
-def by_start(cell: dict) -> str:
+def solved_by_start(cell: dict) -> str:
     """``solved / episodes`` from starts in each of START_BINS_CM's ranges, e.g. ``29/30, 46/47, 11/23``."""
     start, won = np.asarray(cell["start_error_cm"], float), np.asarray(cell["outcomes"], bool)
     bins = np.digitize(start, START_BINS_CM)
     return ", ".join(f"{int(won[bins == b].sum())}/{int((bins == b).sum())}" for b in range(len(START_BINS_CM) + 1))
+
+
+def _has_starts(cell: dict) -> bool:
+    return "start_error_cm" in cell and "outcomes" in cell
 
 
 def _modes(cell: dict) -> str:
@@ -409,7 +413,7 @@ def format_table7(sweep: dict) -> str:
     code = sweep["code"]
     reference = sweep.get("reference", DEFAULTS)
     a = next((c for c in sweep["cells"] if _is_default(c, reference) and "outcomes" in c), None)
-    starts = any("start_error_cm" in c and "outcomes" in c for c in sweep["cells"])
+    starts = any(_has_starts(c) for c in sweep["cells"])
     modes = any("failure_modes" in c for c in sweep["cells"])
     lo, hi = (_label(x) for x in START_BINS_CM)
     lines = [f"| setting | N | K | L | T | {code} |" + (" vs A |" if a else "")
@@ -429,7 +433,7 @@ def format_table7(sweep: dict) -> str:
                   discordant({"seeds": c["seeds"], "success": c["outcomes"]}, {"seeds": a["seeds"], "success": a["outcomes"]}))
             row += f" {vs} |"
         if starts:
-            row += f" {by_start(c) if 'start_error_cm' in c and 'outcomes' in c else ''} |"
+            row += f" {solved_by_start(c) if _has_starts(c) else ''} |"
         if modes:
             row += f" {_modes(c)} |"
         lines.append(row)

@@ -87,7 +87,7 @@ def test_cells_say_why_a_setting_loses_starts_and_failure_modes():
     assert diag == {"failure_modes": {"depth": 1, "wrong place": 2}, "start_error_cm": [1.0, 2.9, 3.0, 9.9, 10.0, 50.0]}
     assert sweep.cell_diagnostics({}) == {}
     a = {**_cell(100, [1, 1, 1, 0, 0, 0]), **diag}
-    assert sweep.by_start(a) == "2/2, 1/2, 0/2"
+    assert sweep.solved_by_start(a) == "2/2, 1/2, 0/2"
     b = {**_cell(1, [1, 1, 1, 1, 1, 1]), "failure_modes": {}, "start_error_cm": diag["start_error_cm"]}
     sw = {"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [1, 100]}, "episodes": 6,
           "cells": [b, a]}
