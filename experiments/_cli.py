@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from pathlib import Path
 
 import readjax  # noqa: F401  (XLA flags before jax is imported)
 from readjax.data.store import DatasetError
@@ -49,3 +51,18 @@ def add_split_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--split", default="test", choices=["train", "test"])
     p.add_argument("--episodes", type=positive_int, default=None, help="the first N episodes (default: all)")
     p.add_argument("--batch-size", type=positive_int, default=32, help="episodes executed together")
+
+
+def read_json_record(path, key: str, what: str) -> dict:
+    """A JSON object that must hold ``key`` (``what`` names the kind, for the message): a missing file,
+    broken JSON or another kind of record is a one-line error, raised before any work starts."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no {what} at {path}")
+    try:
+        record = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path} is not JSON ({e})") from None
+    if not isinstance(record, dict) or key not in record:
+        raise ValueError(f"{path} is not a {what} (no {key!r})")
+    return record

@@ -291,16 +291,7 @@ def read_compare(path: str | None, what: str, section: str) -> dict | None:
     or one without ``section``, is a one-line error before any timing."""
     if not path:
         return None
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"--compare: no benchmark JSON at {path}")
-    try:
-        previous = json.loads(path.read_text())
-    except json.JSONDecodeError as e:
-        raise ValueError(f"--compare: {path} is not JSON ({e})") from e
-    if not isinstance(previous, dict) or section not in previous:
-        raise ValueError(f"--compare: {path} is not a {what} benchmark JSON (no {section!r})")
-    return previous
+    return _cli.read_json_record(path, section, f"{what} benchmark JSON (--compare)")
 
 
 def check_planner_inputs(args) -> dict | None:

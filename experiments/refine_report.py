@@ -6,7 +6,10 @@ ground truth -- uv in pixels, depth in mm, 3D in cm, share within 3 cm -- plus, 
 N, the mean end-depth error of each step's M̂0 and each step's drift |M̂0(k+1) - M̂0(k)|.
 A sound refinement keeps the training error near 0 as N grows and brings the test error below
 N = 0's. Writes a JSON (default RUN/diagnostics/refine_<update>.json: not under eval/, which
-holds success results only).
+holds success results only). The report ends with the refinement issue's two checks: on training
+images the largest N's median 3D end error at most N = 1's, on test images at most N = 0's, each
+also per image (worse / better by more than 0.1 mm, exact sign test). --summary prints those checks
+for several saved reports side by side (one row per task or run).
 
 examples:
   python -m experiments.refine_report --run runs/reach_target/read --data data/
@@ -15,6 +18,7 @@ examples:
   python -m experiments.refine_report --run runs/RT/read --retrieval cheat --rank 500 --N 0 100  # Table 8's start
   python -m experiments.refine_report --run runs/RT/read --retrieval cheat --rank 1 10 50 200 500 --N 0 100
       # how far from the answer refinement can start: end error against start error, and the training pairs' range
+  python -m experiments.refine_report --summary results/*/read_v3_5k_rep/diagnostics/refine_cold_anchor_rounds2.json
 """
 
 from __future__ import annotations
@@ -31,7 +35,9 @@ from readjax.config import REFINE_UPDATES
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.refine_report", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
-    p.add_argument("--run", required=True, help="a READ run folder from experiments.train")
+    p.add_argument("--run", default=None, help="a READ run folder from experiments.train")
+    p.add_argument("--summary", nargs="+", default=None, metavar="JSON",
+                   help="instead of --run: saved reports (this command's JSONs), their checks as one table")
     p.add_argument("--data", default=None, help="dataset root (default: the one the run was trained on)")
     p.add_argument("--images", type=_cli.positive_int, default=100, help="images per split")
     p.add_argument("--N", type=int, nargs="+", default=[0, 1, 10, 100], help="refinement steps to compare")
@@ -54,8 +60,20 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def load_report(path) -> dict:
+    """A saved report (a single-start JSON of this command), with a clear error for anything else."""
+    return _cli.read_json_record(path, "rows", "refine_report JSON of one start (a correction-range report "
+                                               "of several ranks has no checks)")
+
+
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
+    if (args.run is None) == (args.summary is None):
+        raise ValueError("give either --run (diagnose a run) or --summary (tabulate saved reports), not both or neither")
+    if args.summary:
+        from readjax import refine_report
+        print(refine_report.format_checks_table([load_report(f) for f in args.summary]))
+        return
     if any(n < 0 for n in args.N):
         raise ValueError(f"--N values must be >= 0, got {args.N}")
     from readjax import refine_report

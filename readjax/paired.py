@@ -18,11 +18,19 @@ def mcnemar_p(a, b) -> float:
     a, b = np.asarray(a, bool), np.asarray(b, bool)
     if a.shape != b.shape:
         raise ValueError(f"paired outcomes must have the same episodes, got {a.shape} and {b.shape}")
-    n10, n01 = int((a & ~b).sum()), int((~a & b).sum())
-    n = n10 + n01
+    return sign_test_p(int((a & ~b).sum()), int((~a & b).sum()))
+
+
+def sign_test_p(n_plus: int, n_minus: int) -> float:
+    """Exact two-sided sign test: how likely a split at least as uneven as ``n_plus`` against
+    ``n_minus`` is when each pair is equally likely to go either way (ties left out by the caller).
+    1.0 when there are no pairs. McNemar's test is this test on the discordant episodes."""
+    if n_plus < 0 or n_minus < 0:
+        raise ValueError(f"counts must be >= 0, got {n_plus} and {n_minus}")
+    n = n_plus + n_minus
     if n == 0:
         return 1.0
-    tail = sum(comb(n, k) for k in range(min(n10, n01) + 1)) / 2**n
+    tail = sum(comb(n, k) for k in range(min(n_plus, n_minus) + 1)) / 2**n
     return min(1.0, 2 * tail)
 
 

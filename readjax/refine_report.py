@@ -11,17 +11,21 @@ images' error near 0 as N grows and lowers the test images' error below retrieva
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from readjax import failure_modes
+from readjax import failure_modes, paired
 from readjax import motion as motion_lib
 from readjax.diffusion.latent import codec
 from readjax.diffusion.refine import refine
 
 DEFAULT_NS = (0, 1, 10, 100)
 WITHIN_M = 0.03
+# per-image differences of the 3D end error smaller than this (0.1 mm) count as ties in the sign test
+TIE_CM = 0.01
 
 
 def end_errors(camera, plans: np.ndarray, gt: np.ndarray, image_size: int) -> dict[str, np.ndarray]:
@@ -150,6 +154,69 @@ def report(planner, splits: dict[str, tuple[np.ndarray, np.ndarray]], ns=DEFAULT
             "retrieval": retrieval, "rank": rank, "rounds": rounds}
 
 
+def check(rows: list[dict], split: str, n: int, against: int) -> dict | None:
+    """Is the median 3D end error at N = ``n`` at most the one at N = ``against`` on ``split``? (The
+    refinement issue's acceptance: on training images N = 100 <= N = 1, refinement does not walk
+    away from a correct answer; on test images N = 100 <= N = 0, it improves on its retrieval.)
+    Also per image, since both sides plan for the same images: how many end worse / better by more
+    than ``TIE_CM``, the exact sign test's p and the median paired difference. None when the
+    rows lack either N."""
+    by = {(r["split"], r["N"]): r for r in rows}
+    a, b = by.get((split, n)), by.get((split, against))
+    if a is None or b is None:
+        return None
+    out = {"split": split, "N": n, "against": against, "median_cm": a["err_cm_median"],
+           "against_median_cm": b["err_cm_median"], "holds": bool(a["err_cm_median"] <= b["err_cm_median"]),
+           "margin_mm": 10 * (a["err_cm_median"] - b["err_cm_median"]),
+           "worse": None, "better": None, "ties": None, "median_diff_mm": None, "sign_p": None}
+    if "err_cm" in a and "err_cm" in b:  # reports before per-image errors were kept have medians only
+        diff = np.asarray(a["err_cm"], float) - np.asarray(b["err_cm"], float)
+        worse, better = int((diff > TIE_CM).sum()), int((diff < -TIE_CM).sum())
+        out.update(worse=worse, better=better, ties=int(diff.size - worse - better),
+                   median_diff_mm=10 * float(np.median(diff)), sign_p=paired.sign_test_p(worse, better))
+    return out
+
+
+def checks(result: dict) -> list[dict]:
+    """The refinement issue's two checks on a report, where its N values allow them: training images,
+    the largest N against N = 1; test images, the largest N against N = 0."""
+    ns = {r["N"] for r in result["rows"]}
+    n_max = max(ns)
+    wanted = [("train", 1), ("test", 0)]
+    found = [check(result["rows"], split, n_max, against) for split, against in wanted
+             if against in ns and n_max > against]
+    return [c for c in found if c is not None]
+
+
+def format_check(c: dict) -> str:
+    verdict = "holds" if c["holds"] else f"misses by {c['margin_mm']:.2f} mm"
+    line = (f"check: {c['split']} images, N = {c['N']} <= N = {c['against']} (median 3D end error "
+            f"{c['median_cm']:.3f} against {c['against_median_cm']:.3f} cm): {verdict}")
+    if c["worse"] is None:
+        return line
+    return (f"{line}; per image {c['worse']} worse / {c['better']} better / {c['ties']} within "
+            f"{10 * TIE_CM:g} mm (sign test p = {c['sign_p']:.2g}), median difference {c['median_diff_mm']:+.2f} mm")
+
+
+def format_checks_table(results: list[dict]) -> str:
+    """One line per report (several tasks or runs): the two checks side by side."""
+    lines = ["| task | run | train: N = 1 -> max, cm | holds | worse / better, p | test: N = 0 -> max, cm "
+             "| holds | worse / better, p |", "|---|---|---|---|---|---|---|---|"]
+    for res in results:
+        cells = []
+        for split in ("train", "test"):
+            c = next((c for c in checks(res) if c["split"] == split), None)
+            if c is None:
+                cells += ["–", "–", "–"]
+                continue
+            cells += [f"{c['against_median_cm']:.3f} -> {c['median_cm']:.3f} (N = {c['N']})",
+                      "yes" if c["holds"] else f"no (+{c['margin_mm']:.2f} mm)",
+                      "–" if c["worse"] is None else f"{c['worse']} / {c['better']}, p = {c['sign_p']:.2g}"]
+        run = Path(str(res.get("run", "?"))).name
+        lines.append(f"| {res.get('task', '?')} | {run} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def format_report(result: dict) -> str:
     """The table of the refinement issue (one line per split and N) and the loop's trajectory."""
     start = result.get("retrieval", "spe") + (f" (the oracle's neighbour {result['rank']})"
@@ -178,4 +245,5 @@ def format_report(result: dict) -> str:
         lines.append(f"{split}, N = {loop['N']}: mean end-depth error of M̂0 at steps "
                      f"{' / '.join(map(str, marks))}: {depth} mm; mean step drift |ΔM̂0| "
                      f"first {drift[0] if len(drift) else 0:.2e}, last {drift[-1] if len(drift) else 0:.2e}")
+    lines += [format_check(c) for c in checks(result)]
     return "\n".join(lines)
