@@ -212,7 +212,7 @@ def format_checks_table(results: list[dict]) -> str:
             cells += [f"{c['against_median_cm']:.3f} -> {c['median_cm']:.3f} (N = {c['N']})",
                       "yes" if c["holds"] else f"no (+{c['margin_mm']:.2f} mm)",
                       "–" if c["worse"] is None else f"{c['worse']} / {c['better']}, p = {c['sign_p']:.2g}"]
-        run = Path(str(res.get("run", "?"))).name
+        run = res.get("label") or Path(str(res.get("run", "?"))).name
         lines.append(f"| {res.get('task', '?')} | {run} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

@@ -10,7 +10,7 @@ from typing import Callable
 
 import numpy as np
 
-from readjax import failure_modes, tasks, verification
+from readjax import failure_modes, refine_report, tasks, verification
 from readjax.cost_table import cost_lines
 from readjax.paired import mcnemar_p, paired_outcomes
 from readjax.replicates import across_lines
@@ -182,6 +182,40 @@ def sweeps(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple[
             if _kept(f.parent, f.parent.name, exclude, include)]
 
 
+def refine_reports(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple[str, ...] = ()) -> list[dict]:
+    """Every single-start ``experiments.refine_report`` JSON below ``runs_root``
+    (``<run>/diagnostics/refine_*.json``), filtered by its run's name as ``collect`` filters runs;
+    each labelled ``<run>: <file stem>`` (``label``). Multi-rank correction-range reports have no
+    checks and are left out."""
+    root = Path(runs_root)
+    found = []
+    for f in sorted(root.rglob("diagnostics/refine_*.json")):
+        try:
+            r = json.loads(f.read_text())
+        except json.JSONDecodeError:
+            continue
+        if not isinstance(r, dict) or "rows" not in r or "task" not in r:
+            continue
+        run_dir = f.parent.parent
+        label = run_label(run_dir, root, r["task"])
+        if _kept(run_dir, label, exclude, include):
+            found.append(dict(r, label=f"{label}: {f.stem.removeprefix('refine_')}"))
+    return found
+
+
+def refine_check_lines(reports: list[dict]) -> list[str]:
+    """The refinement issue's checks, one row per saved refine_report (none: no section)."""
+    if not reports:
+        return []
+    return ["## Refinement against the ground truth (no simulator)", "",
+            "`experiments.refine_report`: median 3D end error of the plans for 100 training images (retrieval "
+            "returns their own demonstration, the exact answer) and 100 test images. Checks: on training images "
+            "the largest N ends no further off than N = 1 (refinement does not walk away from a correct answer), "
+            "on test images no further than N = 0 (it improves on its retrieval); per image, how many end worse / "
+            f"better by more than {10 * refine_report.TIE_CM:g} mm, with the exact sign test.", "",
+            refine_report.format_checks_table(reports), ""]
+
+
 def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),
                  compare: tuple[str, ...] | str | None = (),
                  main: Callable[[list[dict], Path], list[str]] | None = None, include: tuple[str, ...] = ()) -> str:
@@ -225,6 +259,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     for sw in found_sweeps:
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]
+    lines += refine_check_lines(refine_reports(runs_root, exclude, include))
     lines += cost_lines(runs_root, {r["task"] for r in results} | {sw["task"] for sw in found_sweeps} if include else None)
     lines += provenance_lines(results)
     lines += ["", "| task | test seeds | episodes |", "|---|---|---|"]

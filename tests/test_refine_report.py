@@ -84,3 +84,23 @@ def test_summary_tabulates_saved_reports_and_refuses_other_json(tmp_path, capsys
         cli.main(["--run", "x", "--summary", paths[0]])
     with pytest.raises(FileNotFoundError):
         cli.main(["--summary", str(tmp_path / "missing.json")])
+
+
+def test_the_report_gathers_saved_refine_reports_by_run_name(tmp_path):
+    from readjax import report
+
+    def save(run, name, record):
+        f = tmp_path / "reach_target" / run / "diagnostics" / name
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text(json.dumps(record))
+
+    save("read", "refine_cold_anchor_rounds2.json", _report())
+    save("read", "correction_range_cold_anchor_ranks1-500.json", {"task": "reach_target", "reports": []})
+    save("other", "refine_cold.json", _report())
+    found = report.refine_reports(tmp_path, include=("read",))
+    assert [r["label"] for r in found] == ["read: cold_anchor_rounds2"]
+    lines = "\n".join(report.refine_check_lines(found)).splitlines()
+    assert lines[0].startswith("## Refinement against the ground truth")
+    assert any(line.startswith("| reach_target | read: cold_anchor_rounds2 | 0.600 -> 0.800") for line in lines)
+    assert report.refine_check_lines([]) == []
+    assert len(report.refine_reports(tmp_path, exclude=("read",))) == 1
