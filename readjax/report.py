@@ -37,19 +37,25 @@ def _kept(run_dir: Path, label: str, exclude: tuple[str, ...], include: tuple[st
     return not _matches(run_dir, label, exclude) and (not include or _matches(run_dir, label, include))
 
 
+def _json_records(root: Path, pattern: str, keys: tuple[str, ...]):
+    """(path, record) of every JSON object below ``root`` matching ``pattern`` that holds all ``keys``,
+    in path order; unreadable files and other records are skipped (a report reads what it knows)."""
+    for f in sorted(root.rglob(pattern)):
+        try:
+            r = json.loads(f.read_text())
+        except json.JSONDecodeError:
+            continue
+        if isinstance(r, dict) and all(k in r for k in keys):
+            yield f, r
+
+
 def collect(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple[str, ...] = ()) -> list[dict]:
     """All evaluation results (``<run>/eval/<name>.json``) below ``runs_root``, except those of runs
     whose name (folder name, or the label of ``run_label``) matches one of the ``exclude`` glob
     patterns, and, where ``include`` patterns are given, only those of runs matching one of them."""
     root = Path(runs_root)
     out = []
-    for f in sorted(root.rglob("eval/*.json")):
-        try:
-            r = json.loads(f.read_text())
-        except json.JSONDecodeError:
-            continue
-        if "success_rate" not in r or "task" not in r:
-            continue
+    for f, r in _json_records(root, "eval/*.json", ("success_rate", "task")):
         run_dir = f.parent.parent
         label = run_label(run_dir, root, r["task"])
         if not _kept(run_dir, label, exclude, include):
@@ -189,13 +195,7 @@ def refine_reports(runs_root: str | Path, exclude: tuple[str, ...] = (), include
     checks and are left out."""
     root = Path(runs_root)
     found = []
-    for f in sorted(root.rglob("diagnostics/refine_*.json")):
-        try:
-            r = json.loads(f.read_text())
-        except json.JSONDecodeError:
-            continue
-        if not isinstance(r, dict) or "rows" not in r or "task" not in r:
-            continue
+    for f, r in _json_records(root, "diagnostics/refine_*.json", ("rows", "task")):
         run_dir = f.parent.parent
         label = run_label(run_dir, root, r["task"])
         if _kept(run_dir, label, exclude, include):
