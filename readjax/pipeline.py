@@ -343,9 +343,15 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                                           made=lambda r=source_run: stage_folder.is_finished(r / "vae"),
                                           needs=list(prepare), resumes=True,
                                           seconds_left=lambda r=source_run: stage_folder.seconds_left(r, ("vae",)))
-                    steps.append(shared[source])
                     if source in trains:  # never two trainings of one autoencoder at once (jobs > 1)
                         trains[source].needs.append(shared[source])
+                        # listed just before the source's training, which now waits on it: the scheduler
+                        # starts ready steps in list order, so placed at its first user's position it
+                        # would hold READ back until every earlier baseline had started
+                        at = next(i for i, s in enumerate(steps) if s is trains[source])
+                        steps.insert(at, shared[source])
+                    else:
+                        steps.append(shared[source])
             train = Step("train", task, f"train {label}", argv, made=marker.exists,
                          after=lambda marker=marker, run=run: _trained(marker, run, results),
                          progress=lambda run=run: stage_folder.progress(run), resumes=True,

@@ -312,7 +312,9 @@ def test_a_variant_with_reads_autoencoder_starts_from_it(tmp_path):
     runner = FakeRunner(read_top=0, media_outcome=0)
     scheduler.run_steps(steps, log=lambda m: None, runner=runner)
     stages = [a[a.index("--stage") + 1] if "--stage" in a else "all" for m, a in runner.calls if m == "train"]
-    assert stages == ["all", "all", "all", "all"]  # READ's own training made the autoencoder: no second one
+    # the autoencoder step first (listed before READ's training, which waits on it); READ's training then
+    # resumes past that finished stage in the same run folder, and the variants start from it
+    assert stages == ["vae", "all", "all", "all", "all"]
     # READ's evaluations done: a new variant needs READ's autoencoder only, and it is there
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read", "read_sf2"),
                variants=(("read_sf2", "read", ("sde.self_feed=1.0",)),))
@@ -612,3 +614,20 @@ def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
     quiet = []
     scheduler.run_steps(steps, log=quiet.append, jobs=2, start=start, poll=0)
     assert not any(ln.startswith("running") for ln in quiet)  # the default: every 10 minutes
+
+
+def test_reads_training_is_not_held_back_by_the_autoencoder_step_its_variants_share(tmp_path):
+    """READ's training waits on the autoencoder-only step that READ-L and READ's variants share, so
+    that step is listed right before READ's training: with the slots filled in list order, READ (and
+    then its evaluations) starts before the baselines listed after it, as the grid intends."""
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read", "deterministic", "vpsde", "read_l"), read_N=(0, 100))
+    steps = pipeline.plan_steps(cfg)
+    labels = [s.label for s in steps if s.kind == "train"]
+    assert labels == ["train read (autoencoder only)", "train read", "train deterministic", "train vpsde",
+                      "train read_l"]
+    starter = _Starter(FakeRunner(read_top=0, media_outcome=0), 0)
+    scheduler.run_steps(steps, log=lambda m: None, jobs=2, start=starter, poll=0, log_dir=tmp_path / "logs")
+    started = [" ".join(argv) for kind, argv in starter.events if kind == "start" and "experiments.train" in argv]
+    names = [a.split("--name ")[1].split()[0] + (" (vae)" if "--stage vae" in a else "") for a in started]
+    assert names[0] == "read (vae)"
+    assert names.index("read") < min(names.index("vpsde"), names.index("read_l")), names
