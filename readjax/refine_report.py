@@ -181,6 +181,8 @@ def checks(result: dict) -> list[dict]:
     """The refinement issue's two checks on a report, where its N values allow them: training images,
     the largest N against N = 1; test images, the largest N against N = 0."""
     ns = {r["N"] for r in result["rows"]}
+    if not ns:
+        return []
     n_max = max(ns)
     wanted = [("train", 1), ("test", 0)]
     found = [check(result["rows"], split, n_max, against) for split, against in wanted
@@ -203,9 +205,9 @@ def format_checks_table(results: list[dict]) -> str:
     lines = ["| task | run | train: N = 1 -> max, cm | holds | worse / better, p | test: N = 0 -> max, cm "
              "| holds | worse / better, p |", "|---|---|---|---|---|---|---|---|"]
     for res in results:
-        cells = []
+        cells, by_split = [], {c["split"]: c for c in checks(res)}
         for split in ("train", "test"):
-            c = next((c for c in checks(res) if c["split"] == split), None)
+            c = by_split.get(split)
             if c is None:
                 cells += ["–", "–", "–"]
                 continue

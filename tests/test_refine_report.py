@@ -65,6 +65,7 @@ def test_checks_need_the_n_they_compare():
     r = _report()
     r["rows"] = [row for row in r["rows"] if row["N"] != 1]
     assert [c["split"] for c in refine_report.checks(r)] == ["test"]
+    assert refine_report.checks({"rows": []}) == []
 
 
 def test_summary_tabulates_saved_reports_and_refuses_other_json(tmp_path, capsys):
