@@ -10,7 +10,7 @@ examples:
   python -m experiments.train --task PB --preset cpu --set steps=500 --set L=1.0 --name read_L1
   python -m experiments.train --task RT --preset paper --stage read      # only the diffusion stage
   python -m experiments.train --task RT --model vpsde --set val_episodes=100 --set stop_patience=2000
-  python -m experiments.train --task RT --name read_sf --set sde.self_feed=0.5 --vae-from runs/reach_target/read
+  python -m experiments.train --task RT --name read_sf0 --set sde.self_feed=0 --vae-from runs/reach_target/read  # the paper's loss
 
 The convergence rule (every method, every stage): with train.val_episodes > 0 the last demos of
 the training split are held out and their loss is logged every train.val_every steps (val_loss in

@@ -399,6 +399,27 @@ def test_a_run_name_of_another_recipe_is_refused(tmp_path, capsys):
     assert "differs in train.steps" in capsys.readouterr().err
 
 
+def test_runs_trained_before_the_preset_self_fed_are_kept_by_an_explicit_override(tmp_path):
+    """The cpu preset trains READ's denoiser on its own predictions (sde.self_feed = 0.5). A READ run
+    recorded before the field existed trained with 0: under the current preset the grid refuses its
+    run name, and the README's grid commands keep it with --set sde.self_feed=0."""
+    from readjax import config
+    assert config.presets("cpu")["sde"].self_feed == 0.5 and config.presets("paper")["sde"].self_feed == 0.0
+    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",), media_episodes=0)
+    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    evals = sorted((tmp_path / "results" / "reach_target" / "read" / "eval").glob("*.json"))
+    assert evals
+    for f in evals:
+        r = json.loads(f.read_text())
+        assert r["configs"]["sde"]["self_feed"] == 0.5
+        del r["configs"]["sde"]["self_feed"]  # an older readjax's record
+        f.write_text(json.dumps(r))
+    with pytest.raises(scheduler.PipelineError, match=r"differs in sde\.self_feed"):
+        pipeline.plan_steps(cfg)
+    kept = dataclasses.replace(cfg, overrides=("sde.self_feed=0",))
+    assert all(s.done() for s in pipeline.plan_steps(kept))
+
+
 def test_eta_prices_each_step_by_its_own_label(tmp_path):
     """The ETA uses the time of the same step on an earlier task, not the mean of its kind."""
     steps = [s for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))) if s.kind == "train"]

@@ -70,12 +70,14 @@ def test_recipe_differences_name_the_trained_fields_only():
     """A recorded recipe equals the wanted one up to what is not the recipe: inference-only fields
     (refinement's update and rounds), data-derived ones (motion statistics) and fields the run
     predates, counted at their defaults. A trained field that differs is named."""
-    configs = presets("cpu")
+    configs = override(presets("cpu"), ["sde.self_feed=0"])  # the cpu preset before it self-fed
     wanted = configs_to_dict(configs, ["denoiser", "sde"])
     recorded = {"denoiser": {**wanted["denoiser"], "motion_mean": [1.0], "motion_std": [2.0]},
                 "sde": {k: v for k, v in wanted["sde"].items() if k != "self_feed"}}  # predates self_feed
     recorded["sde"]["rounds"] = 7
     assert recipe_differences(recorded, wanted) == []
+    # the current cpu preset self-feeds: a run that predates the field trained otherwise
+    assert recipe_differences(recorded, configs_to_dict(presets("cpu"), ["denoiser", "sde"])) == ["sde.self_feed"]
     other = configs_to_dict(override(configs, ["sde.lam=0.1", "denoiser.layers=3"]), ["denoiser", "sde"])
     assert recipe_differences(other, wanted) == ["denoiser.layers", "sde.lam"]
 

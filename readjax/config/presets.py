@@ -25,7 +25,7 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "read_o": ReadOConfig(),
     },
     "cpu": {
-        # READ's four departures at this scale (README "Where readjax departs from the paper";
+        # READ's departures at this scale (README "Where readjax departs from the paper";
         # measured on reach_target, BENCHMARKS.md 8c-8d): a weak KL (the autoencoder's end point
         # 3.9 -> 1.2 cm), the denoiser reads the exact RGB-D under each frame with motions
         # standardised (its depth corrections), it trains on its K = 50 nearest neighbours
@@ -36,6 +36,10 @@ _PRESETS: dict[str, dict[str, Any]] = {
         # gained +4 / +4 / +5 episodes and lost none, BENCHMARKS.md 8l), in two rounds (the second
         # refines the first's plan: the denoiser corrects a near start better than a far one; +5 / +6
         # / +3 episodes more, none lost; RT 82 / 61 / 72 -> 91 / 71 / 80 % over the three trainings).
+        # Half of each denoiser batch is trained on the degradation of its own gradient-free
+        # prediction (``sde.self_feed``): the loop feeds it nothing else from its second step on, and
+        # without it refinement walks away from a correct answer on training images (the refinement
+        # issue's check; BENCHMARKS.md 18i-18j). ``--set sde.self_feed=0`` trains the earlier recipe.
         "vae": VAEConfig(width=32, layers=2, heads=4, ffn=128, latent_dim=32, kl_weight=1e-4),
         # No ConvNeXt blocks at the 1/4-resolution level (it is patchify conv + skip only) and a
         # 2-layer, 2-head transformer: on a busy 2-core CPU a batch-32 READ step measured ~0.4
@@ -43,7 +47,7 @@ _PRESETS: dict[str, dict[str, Any]] = {
         "denoiser": DenoiserConfig(image_size=64, conv_dims=(16, 32, 64, 128), enc_depths=(0, 1, 1, 1),
                                    dec_depths=(0, 1, 1), drop_path=0.1, feature_channels=64, d_model=64,
                                    layers=2, heads=2, ffn=128, normalize_motion=True, input_skip=True),
-        "sde": SDEConfig(update="cold_anchor", rounds=2),
+        "sde": SDEConfig(update="cold_anchor", rounds=2, self_feed=0.5),
         # ResNet18 with a quarter of the channels at 64 px: a batch-32 step measured ~0.13 s here.
         "resnet": ResNetConfig(input_size=64, stage_widths=(16, 32, 64, 128), stage_blocks=(2, 2, 2, 2),
                                norm_groups=8, proj_dim=64, head_hidden=256),
