@@ -269,9 +269,10 @@ def bench_train(args) -> dict:
         row["flops"] = {"read_step": b["read"].cost(), "vae_step": b["vae"].cost()}
         row["seconds"] = round(time.perf_counter() - t0, 1)
         result["parts"].append(row)
+        pieces = ", ".join(f"{k[:-3]} {v:.1f}" for k, v in row.items() if k.endswith("_ms") and "step" not in k)
         print(f"{preset} B={args.batch}: READ step {row['read_step_ms']:.1f} ms (self_feed "
-              f"{b['configs']['sde'].self_feed:g}; on the paper's loss {row['read_plain_step_ms']:.1f}), autoencoder step {row['vae_step_ms']:.1f} ms; " + ", ".join(f"{k[:-3]} {v:.1f}" for k, v in row.items()
-                                                           if k.endswith("_ms") and "step" not in k), flush=True)
+              f"{b['configs']['sde'].self_feed:g}; on the paper's loss {row['read_plain_step_ms']:.1f}), "
+              f"autoencoder step {row['vae_step_ms']:.1f} ms; {pieces}", flush=True)
         if args.profile:
             for stage, parts in (("read", PROFILE_PARTS), ("vae", VAE_PROFILE_PARTS)):
                 prof = profile_step(b[stage], parts=parts)
