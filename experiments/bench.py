@@ -204,7 +204,7 @@ def bench_planner(args) -> dict:
         t0 = time.perf_counter()
         planner = Planner(model, db)
         setup = time.perf_counter() - t0
-        print(f"{preset}: planner set-up (database features for {n_db}) {setup:.1f}s", flush=True)
+        print(f"{preset}: planner set-up (database features for {args.database}) {setup:.1f}s", flush=True)
         timed: dict[int, list[tuple[int, float]]] = {}  # batch -> [(N, seconds per call)]
         for b in args.batch_sizes:
             images = rng.uniform(size=(b, size, size, 4)).astype(np.float32)

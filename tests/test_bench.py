@@ -94,3 +94,22 @@ def test_train_profile_attributes_a_steps_ops_to_the_models_parts():
     assert bench_train._part_of("jvp(Denoiser)/Denoiser.denoise/Denoiser.track_tokens/unet.head_at/mul") \
         == "feature sampling"
     assert stepper.cost()["gflop"] > 0
+
+
+def test_planner_benchmark_runs_end_to_end_and_compares_with_itself(tmp_path):
+    """``experiments.bench planner`` at the cpu preset, one image, a 2-demo database: every cell and
+    part is timed and written, and ``--compare`` against its own JSON flags nothing (exit 0)."""
+    import json
+
+    from experiments import _cli
+    from experiments.bench import main
+
+    out = tmp_path / "planner.json"
+    argv = ["planner", "--presets", "cpu", "--batch-sizes", "1", "--N", "1", "--database", "2", "--repeats", "1"]
+    assert _cli.run(main, argv + ["--out", str(out)]) == 0
+    rec = json.loads(out.read_text())
+    assert [(c["preset"], c["batch"], c["N"]) for c in rec["cells"]] == [("cpu", 1, 1)]
+    assert rec["cells"][0]["ms_per_plan"] > 0 and rec["cells"][0]["setup_s"] >= 0
+    assert {"encode_ms", "retrieve_ms", "refine_N1_ms", "decode_ik_ms"} <= set(rec["parts"][0])
+    assert _cli.run(main, argv + ["--out", str(tmp_path / "again.json"), "--compare", str(out),
+                                  "--slower", "1000"]) == 0
