@@ -59,6 +59,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=_cli.positive_int, default=1,
                    help="trainings at once: each cell's training its own `experiments.train` process (logs in "
                         "OUT/<task>/<name>/logs/), the evaluations after them; 2 on 2 cores, a dozen on a GPU")
+    p.add_argument("--other-split-versions", action="store_true",
+                   help="with --results: also keep committed cells measured on the same test seeds but another "
+                        "version of the split (generated on another CPU, whose float rounding moves the expert's "
+                        "motions by ~1e-6 m; scenes and images are the same); the table marks those pairs. "
+                        "Without it such cells are trained again")
     p.add_argument("--quiet", action="store_true")
     return p
 
@@ -70,7 +75,8 @@ def main(argv=None) -> None:
     cfg = SweepConfig(task=args.task, grid=parse_grid(args.grid), model=args.model, preset=args.preset,
                       data=args.data, out=args.out, name=args.name, episodes=args.episodes,
                       sets=tuple(args.set), batch_size=args.batch_size, results=args.results,
-                      reference_run=args.reference_run, vary=args.vary, jobs=args.jobs)
+                      reference_run=args.reference_run, vary=args.vary, jobs=args.jobs,
+                      other_split_versions=args.other_split_versions)
     result = run_sweep(cfg, progress=not args.quiet)
     print(format_table7(result))
 

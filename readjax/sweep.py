@@ -24,6 +24,7 @@ import numpy as np
 from readjax import _runtime, config, evaluation, methods, result_record, scheduler, stage_folder, tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
+from readjax.claims import VERSION_MARK
 from readjax.paired import discordant
 from readjax.planner import Planner
 
@@ -84,6 +85,10 @@ class SweepConfig:
     # trainings at once (jobs > 1: each cell's training an ``experiments.train`` process, the
     # evaluations after them in this one); a GPU holds a dozen, 2 cores two
     jobs: int = 1
+    # also keep committed cells measured on the same seeds but another version of the test split (another
+    # CPU's float rounding of the expert's motions: the same scenes and images, fingerprints differ);
+    # off, such cells are trained again. The table marks each pair across versions (VERSION_MARK).
+    other_split_versions: bool = False
 
 
 def _label(v) -> str:
@@ -109,7 +114,8 @@ def run_sweep(cfg: SweepConfig, progress: bool = True) -> dict:
     # setting A of this sweep: its preset's own values (the paper preset: the paper's A; the cpu preset
     # trains on K = 50), with the fixed --set overrides
     reference = setting_of(config.override(config.presets(cfg.preset), list(cfg.sets)))
-    committed = committed_cells(Path(cfg.results) / task / cfg.name if cfg.results else None, test_ds)
+    committed = committed_cells(Path(cfg.results) / task / cfg.name if cfg.results else None, test_ds,
+                                other_versions=cfg.other_split_versions)
     plan = []  # (values, run_name, run_dir, configs, trained, Ns, committed cells or None)
     for values in cell_settings(cfg.grid, reference, cfg.vary):
         at_a = all(values[k] == reference[k] for k in values)
@@ -219,17 +225,24 @@ def _is_trained(run: Path, model: str) -> bool:
     return all(stage_folder.is_finished(Path(run) / s) for s in methods.stages(model))
 
 
-def committed_cells(folder: Path | None, test_ds) -> dict[tuple, dict]:
+def committed_cells(folder: Path | None, test_ds, other_versions: bool = False) -> dict[tuple, dict]:
     """The cells of a sweep committed in ``folder`` (RESULTS/<task>/<name>/sweep.json) measured on
     ``test_ds``'s episodes (same test fingerprint and seeds), by (N, K, L, T). A cell recorded
-    without its test fingerprint is not taken: nothing then says which episodes it ran."""
+    without its test fingerprint is not taken: nothing then says which episodes it ran.
+
+    ``other_versions``: also a cell on the same seeds whose fingerprint differs. A test split
+    generated on another CPU can differ at float precision (XLA rounds the expert's rollout
+    differently per instruction set: PB's motions by < 1e-6 m, its scenes and images identical,
+    BENCHMARKS 18k), so its episodes are the same scenes seen in the same images. The cell keeps
+    its own fingerprint, and the table marks its pairs across versions."""
     f = folder / "sweep.json" if folder is not None else None
     if f is None or not f.exists():
         return {}
     seeds = [int(x) for x in test_ds.seeds]
     out = {}
     for c in json.loads(f.read_text()).get("cells", []):
-        if (c.get("test_fingerprint") != test_ds.fingerprint or "outcomes" not in c
+        same_version = c.get("test_fingerprint") == test_ds.fingerprint
+        if (not (same_version or (other_versions and c.get("test_fingerprint"))) or "outcomes" not in c
                 or [int(x) for x in c["seeds"]] != seeds):
             continue
         out[tuple(c[k] for k in DEFAULTS)] = c
@@ -421,6 +434,7 @@ def format_table7(sweep: dict) -> str:
              + (" failures by mode |" if modes else ""),
              "|---|---|---|---|---|---|" + ("---|" if a else "") + ("---|" if starts else "") + ("---|" if modes else "")]
     others = 0  # the other settings are lettered B, C, ... in order, A's place skipped
+    across_versions = False
     for c in sweep["cells"]:
         if _is_default(c, reference):
             tag = "A (default)"
@@ -431,12 +445,19 @@ def format_table7(sweep: dict) -> str:
         if a:
             vs = ("–" if c is a or "outcomes" not in c else
                   discordant({"seeds": c["seeds"], "success": c["outcomes"]}, {"seeds": a["seeds"], "success": a["outcomes"]}))
+            if vs != "–" and c.get("test_fingerprint") != a.get("test_fingerprint"):
+                vs += f" {VERSION_MARK}"
+                across_versions = True
             row += f" {vs} |"
         if starts:
             row += f" {solved_by_start(c) if _has_starts(c) else ''} |"
         if modes:
             row += f" {_modes(c)} |"
         lines.append(row)
+    if across_versions:
+        lines += ["", f"{VERSION_MARK} This cell and A ran the same seeds (the same scenes and images) on different "
+                  "versions of the test split: generated on different CPUs, their expert motions differ at float "
+                  "precision (`test_fingerprint` in each cell)."]
     return "\n".join(lines) + "\n"
 
 

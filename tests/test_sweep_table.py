@@ -31,6 +31,41 @@ def test_cells_are_paired_with_setting_a(tmp_path):
     assert (folder / "table.md").read_text() == sweep.format_table7(sw) and (folder / "sweep.png").stat().st_size > 0
 
 
+def test_pairs_across_versions_of_the_test_split_are_marked():
+    """A cell measured on another version of the split (same seeds, another CPU's float rounding) is
+    paired with A by seed as before, and marked, with a note saying what differs."""
+    cells = [_cell(1, [1] * 5 + [0] * 5, test_fingerprint="a" * 16),
+             _cell(0, [0] * 10, test_fingerprint="b" * 16), _cell(100, [1] * 10, test_fingerprint="a" * 16)]
+    sw = {"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [0, 1, 100]}, "episodes": 10,
+          "cells": cells}
+    text = sweep.format_table7(sw)
+    lines = text.splitlines()
+    assert lines[2] == "| B | 1 | 3 | 0.5 | 2 | 50.0 | +0 / -5, p=0.062 |"
+    assert lines[3] == f"| C | 0 | 3 | 0.5 | 2 | 0.0 | +0 / -10, p=0.002 {sweep.VERSION_MARK} |"
+    assert text.count(sweep.VERSION_MARK) == 2 and "different versions of the test split" in text
+    same = {**sw, "cells": [cells[0], cells[2]]}
+    assert sweep.VERSION_MARK not in sweep.format_table7(same)
+
+
+def test_committed_cells_on_another_split_version_are_kept_only_when_asked(tmp_path):
+    """A fresh machine whose CPU regenerates the test split at another float rounding: by default its
+    committed cells do not count (they train again); with ``other_versions`` the cells on the same
+    seeds do, each keeping its own fingerprint. Cells on other seeds never do."""
+    class _Split:
+        fingerprint = "c" * 16
+        seeds = list(range(10))
+    folder = tmp_path / "results" / "reach_target" / "table7"
+    cells = [_cell(100, [1] * 10, test_fingerprint="d" * 16), _cell(1, [1] * 10, test_fingerprint="c" * 16),
+             {**_cell(0, [0] * 10, test_fingerprint="d" * 16), "seeds": list(range(1, 11))}]
+    sweep.write_sweep({"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [0, 1, 100]},
+                       "episodes": 10, "cells": cells}, folder)
+    strict = sweep.committed_cells(folder, _Split())
+    assert list(strict) == [(1, 3, 0.5, 2.0)]
+    loose = sweep.committed_cells(folder, _Split(), other_versions=True)
+    assert sorted(loose) == [(1, 3, 0.5, 2.0), (100, 3, 0.5, 2.0)]
+    assert loose[(100, 3, 0.5, 2.0)]["test_fingerprint"] == "d" * 16
+
+
 def test_setting_a_is_the_sweeps_own_preset(tmp_path):
     """A sweep under the cpu preset (K = 50) is paired against its own preset's setting, and a cell
     trained with the paper's K = 3 is one of its departures, not A."""
