@@ -144,15 +144,22 @@ def original_ratios(cells: list[dict], original_plans: list[dict], threads: int)
     return rows
 
 
+def original_command(args, out_json: Path) -> list[str]:
+    """The shared harness's command line for this benchmark's batches, N, database size, cap on a
+    cell's seconds and the original's variants (``as_is``, ``cached``)."""
+    return [args.original_python, args.original_harness, args.vs_original, "--threads", str(args.threads),
+            "--batches", *map(str, args.batch_sizes), "--steps", *map(str, sorted(args.N)),
+            "--variants", *args.original_variants,
+            "--repeats", str(args.repeats), "--db-size", str(args.database), "--max-cell-s", str(args.max_seconds),
+            "--out", str(out_json)]
+
+
 def run_original(args, out_json: Path) -> dict:
     """Time the original READ planner with the shared harness, in a subprocess (its own Python with
     torch, see the harness's docstring), at this benchmark's batches, N and database size."""
     import subprocess
 
-    cmd = [args.original_python, args.original_harness, args.vs_original, "--threads", str(args.threads),
-           "--batches", *map(str, args.batch_sizes), "--steps", *map(str, sorted(args.N)),
-           "--repeats", str(args.repeats), "--db-size", str(args.database), "--max-cell-s", str(args.max_seconds),
-           "--out", str(out_json)]
+    cmd = original_command(args, out_json)
     print("original READ:", " ".join(cmd), flush=True)
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
     return json.loads(out_json.read_text())
@@ -268,6 +275,9 @@ def parser() -> argparse.ArgumentParser:
     pl.add_argument("--original-harness", default=str(Path(__file__).resolve().parents[2] / "shared" / "tools"
                                                       / "orig_read_timing.py"))
     pl.add_argument("--threads", type=_cli.positive_int, default=2, help="torch threads for the original")
+    pl.add_argument("--original-variants", nargs="+", choices=("as_is", "cached"), default=["as_is", "cached"],
+                    help="the original's variants to time: as released (its UNet re-run at every step: at batch 64 "
+                         "and N = 100 about an hour on 2 cores) and/or with its UNet map cached")
     pl.add_argument("--compare", metavar="JSON",
                     help="a previous planner JSON (e.g. docs/bench/planner_paper.json): list every cell or part "
                          "that got >= --slower x slower, and exit 1 if any did")

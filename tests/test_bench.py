@@ -1,5 +1,7 @@
 """The benchmarks: the planner cost model for skipping cells, the regression check, the training profile."""
 
+from pathlib import Path
+
 import pytest
 
 from experiments.bench import _estimate_call_s
@@ -48,6 +50,24 @@ def test_original_ratios_pair_cells_by_batch_n_and_threads():
              {"variant": "as_is", "threads": 2, "batch": 1, "N": 100, "measured": False}]
     rows = original_ratios(cells, plans, threads=2)
     assert [(r["N"], r["variant"], r["speedup"]) for r in rows] == [(1, "as_is", 1.3), (100, "cached", 1.2)]
+
+
+def test_the_originals_harness_is_asked_for_this_benchmarks_cells_and_variants(tmp_path):
+    """--vs-original times the original at the benchmark's own batches, N, database and cap, and only
+    at the variants asked for (as released, at batch 64 and N = 100, runs about an hour on 2 cores)."""
+    from experiments.bench import original_command, parser
+
+    argv = ["planner", "--presets", "paper", "--batch-sizes", "64", "--N", "100", "1", "--database", "32",
+            "--max-seconds", "900", "--vs-original", str(tmp_path)]
+    cmd = original_command(parser().parse_args(argv + ["--original-variants", "cached"]), tmp_path / "o.json")
+    text = " ".join(cmd)
+    assert "--batches 64 --steps 1 100 --variants cached --repeats" in text
+    assert "--db-size 32 --max-cell-s 900.0" in text and cmd[2] == str(tmp_path)
+    both = original_command(parser().parse_args(argv), tmp_path / "o.json")
+    assert "--variants as_is cached" in " ".join(both)
+    harness = Path(__file__).resolve().parents[2] / "shared" / "tools" / "orig_read_timing.py"
+    if harness.exists():  # the flag names the harness's own option and choices
+        assert 'add_argument("--variants"' in harness.read_text() and '"as_is", "cached"' in harness.read_text()
 
 
 def test_bad_compare_or_original_paths_fail_before_any_timing(tmp_path):
