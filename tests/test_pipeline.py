@@ -413,6 +413,11 @@ def test_sweep_resumes_and_reports(run, tmp_path, monkeypatch):
         sweep_lib.run_sweep(sweep_lib.SweepConfig(task="RT", grid={"N": [0, 1], "L": [0.3, 0.5]}, data=str(data),
                                                   out=str(tmp_path), episodes=2, batch_size=2, sets=tuple(TINY),
                                                   results=str(tmp_path / "committed")), progress=False)
+    # ... unless asked to keep cells on the same seeds from another version of the split (another CPU's
+    # float rounding): then nothing trains, and the cell keeps its own fingerprint
+    shutil.rmtree(sweep_dir, ignore_errors=True)
+    assert _cli.run(sweep_cli.main, argv + ["--other-split-versions"]) == 0
+    assert json.loads((sweep_dir / "sweep.json").read_text())["cells"] == moved["cells"]
 
 
 def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, tmp_path, monkeypatch):
