@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from readjax import _runtime, config, evaluation, methods, result_record, scheduler, stage_folder, tasks
+from readjax.claims import VERSION_MARK, split_versions_differ
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
-from readjax.claims import VERSION_MARK
 from readjax.paired import discordant
 from readjax.planner import Planner
 
@@ -241,8 +241,8 @@ def committed_cells(folder: Path | None, test_ds, other_versions: bool = False) 
     seeds = [int(x) for x in test_ds.seeds]
     out = {}
     for c in json.loads(f.read_text()).get("cells", []):
-        same_version = c.get("test_fingerprint") == test_ds.fingerprint
-        if (not (same_version or (other_versions and c.get("test_fingerprint"))) or "outcomes" not in c
+        fingerprint = c.get("test_fingerprint")
+        if (not fingerprint or (fingerprint != test_ds.fingerprint and not other_versions) or "outcomes" not in c
                 or [int(x) for x in c["seeds"]] != seeds):
             continue
         out[tuple(c[k] for k in DEFAULTS)] = c
@@ -445,7 +445,7 @@ def format_table7(sweep: dict) -> str:
         if a:
             vs = ("–" if c is a or "outcomes" not in c else
                   discordant({"seeds": c["seeds"], "success": c["outcomes"]}, {"seeds": a["seeds"], "success": a["outcomes"]}))
-            if vs != "–" and c.get("test_fingerprint") != a.get("test_fingerprint"):
+            if vs != "–" and split_versions_differ(c, a):
                 vs += f" {VERSION_MARK}"
                 across_versions = True
             row += f" {vs} |"

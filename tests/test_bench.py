@@ -65,7 +65,7 @@ def test_the_originals_harness_is_asked_for_this_benchmarks_cells_and_variants(t
     assert "--db-size 32 --max-cell-s 900.0" in text and cmd[2] == str(tmp_path)
     both = original_command(parser().parse_args(argv), tmp_path / "o.json")
     assert "--variants as_is cached" in " ".join(both)
-    harness = Path(__file__).resolve().parents[2] / "shared" / "tools" / "orig_read_timing.py"
+    harness = Path(parser().parse_args(argv).original_harness)  # the shared harness, by default
     if harness.exists():  # the flag names the harness's own option and choices
         assert 'add_argument("--variants"' in harness.read_text() and '"as_is", "cached"' in harness.read_text()
 
