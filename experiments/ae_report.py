@@ -2,9 +2,17 @@
 and the fraction of decoded motions whose poses IK reaches within 5 mm / 0.05 rad (joint limits
 enforced). The recorded demos go through the same IK check as a reference row.
 
+With --execute, each round trip Dec(Enc(M)) is also executed in MJX in its episode's stored scene,
+through the evaluation path (scene guard, IK, controller, the task's predicate), and the table gains
+its task success; the reference row is then the ground-truth replay (it must read 100 %). That rate
+bounds any plan that is the decoder's output, as READ-L's is: on close_box, READ's autoencoder keeps
+51 of 100 test motions, and READ-L solves 50, 91 of them the same episodes (BENCHMARKS.md 18l).
+
 examples:
   python -m experiments.ae_report --runs runs/reach_target/read runs/reach_target/read_kin \\
       --data data/ --split test --out docs/autoencoders.json
+  python -m experiments.ae_report --runs runs/close_box/read_l_conv --execute \\
+      --out results/close_box/read_l_conv/autoencoder_test.json
 """
 
 from __future__ import annotations
@@ -24,6 +32,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--data", default="data", help="dataset root (DATA/<task>/<split>)")
     p.add_argument("--split", default="test", help="which split to reconstruct")
     p.add_argument("--episodes", type=_cli.positive_int, default=None, help="use the first N demos (default: all)")
+    p.add_argument("--execute", action="store_true",
+                   help="also execute every round trip in its episode's scene (task success; ~1 s per episode on a CPU)")
+    p.add_argument("--batch-size", type=_cli.positive_int, default=32, help="episodes executed together (--execute)")
     p.add_argument("--out", default=None, help="JSON output (a markdown table goes beside it)")
     return p
 
@@ -31,6 +42,9 @@ def parser() -> argparse.ArgumentParser:
 def table(rows: list[dict]) -> str:
     head = ("| autoencoder | demos | pos err mm (mean / p95) | end pos err mm (median / p95) | rot err rad (mean) | uv err px | "
             "poses reachable | motions reachable | IK pos err mm (median / max) |")
+    executed = any("task_success" in r for r in rows)
+    if executed:
+        head += " task success |"
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         rec, rc = r.get("reconstruction"), r["reachability"]
@@ -40,6 +54,9 @@ def table(rows: list[dict]) -> str:
         lines.append(f"| {r['name']} | {r['episodes']} | {rec_cols} | {100 * rc['poses_reachable']:.1f}% | "
                      f"{100 * rc['motions_reachable']:.1f}% | {rc['ik_pos_err_mm_median']:.2f} / "
                      f"{rc['ik_pos_err_mm_max']:.1f} |")
+        if executed:
+            ts = r.get("task_success")
+            lines[-1] += f" {ts['successes']} / {r['episodes']} |" if ts else " - |"
     return "\n".join(lines)
 
 
@@ -56,10 +73,21 @@ def main(argv=None) -> None:
         raise ValueError(f"the runs are of different tasks: {sorted(task_names)}")
     task = task_names.pop()
     ds = load_dataset(Path(args.data) / task / args.split, limit=args.episodes)
-    rows = [{"name": "recorded demos (IK check only)", "episodes": len(ds),
-             "reachability": ae_eval.reachability(tasks.make(task).chain, ds.camera, ds.motion)}]
+    env = tasks.make(task)
+    reference = {"name": "recorded demos (IK check only)", "episodes": len(ds),
+                 "reachability": ae_eval.reachability(env.chain, ds.camera, ds.motion)}
+    execute = None
+    if args.execute:
+        from readjax.evaluation import replay_ground_truth
+        from readjax.sim.execute import execute_motions
+
+        replay = replay_ground_truth(env, ds, batch_size=args.batch_size)  # the scene guard, then the ground truth
+        reference.update(name="recorded demos (ground-truth replay)", task_success=ae_eval.task_success(replay["success"]))
+        print(f"ground truth replayed: {replay['successes']} / {len(ds)}", flush=True)
+        execute = lambda m: execute_motions(env, ds.camera, ds.scenes, m, batch_size=args.batch_size)["success"]
+    rows = [reference]
     for run in runs:
-        res = ae_eval.evaluate_autoencoder(run, ds.motion)
+        res = ae_eval.evaluate_autoencoder(run, ds.motion, execute=execute)
         res["name"] = ("kinematics-aware AE" if res["kinematic"] else "task-space VAE") + f" ({run.name})"
         rows.append(res)
         print(f"{res['name']}: done", flush=True)
@@ -68,7 +96,8 @@ def main(argv=None) -> None:
     if args.out:
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps({"task": task, "split": args.split, "rows": rows,
+        out.write_text(json.dumps({"task": task, "split": args.split, "dataset_fingerprint": ds.fingerprint,
+                                   "seeds": ds.seeds.tolist(), "rows": rows,
                                    "versions": provenance.versions()}, indent=1))
         out.with_suffix(".md").write_text(f"# Autoencoders on {task} ({args.split} split)\n\n{text}\n")
         print(f"wrote {out} and {out.with_suffix('.md')}")

@@ -98,15 +98,36 @@ def load_autoencoder(run_dir: str | Path):
     return ae, params, spec
 
 
-def evaluate_autoencoder(run_dir: str | Path, motions: np.ndarray, chunk: int = 64) -> dict:
-    """Reconstruction errors and reachability of a run's autoencoder on ``motions`` (B, 101, 10)."""
+def round_trip(run_dir: str | Path, motions: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, dict]:
+    """(Dec(Enc(M)) of every motion (B, 101, 10), with the code's mean (deterministic), run spec): a
+    motion as the run's motion space keeps it. A latent normalisation (``sde.latent_norm``) cancels in
+    the round trip, so the raw code gives the same motion."""
     ae, params, spec = load_autoencoder(run_dir)
-    camera = CameraParams.from_dict(spec["camera"])
     recon_fn = jax.jit(lambda p, m: ae.apply(p, ae.apply(p, m, method="code"), method="decode"))
     recon = np.concatenate([np.asarray(recon_fn(params, jnp.asarray(motions[s:s + chunk])))
                             for s in range(0, len(motions), chunk)])
+    return recon, spec
+
+
+def evaluate_autoencoder(run_dir: str | Path, motions: np.ndarray, chunk: int = 64, execute=None) -> dict:
+    """Reconstruction errors and reachability of a run's autoencoder on ``motions`` (B, 101, 10).
+
+    ``execute``: a function of motions (B, 101, 10) returning each one's task success (0 / 1), e.g. the
+    evaluation path on the motions' own scenes. With it, the round trip is also executed: how much of
+    the task the motion space keeps, which bounds any plan that is the decoder's output (READ-L's)."""
+    recon, spec = round_trip(run_dir, motions, chunk)
+    camera = CameraParams.from_dict(spec["camera"])
     chain = tasks.make(spec["task"]).chain
-    return {"run": str(run_dir), "kinematic": bool(spec["configs"]["vae"].get("kinematic", False)),
-            "episodes": len(motions),
-            "reconstruction": reconstruction_errors(camera, recon, motions, int(spec["image_size"])),
-            "reachability": reachability(chain, camera, recon)}
+    out = {"run": str(run_dir), "kinematic": bool(spec["configs"]["vae"].get("kinematic", False)),
+           "episodes": len(motions),
+           "reconstruction": reconstruction_errors(camera, recon, motions, int(spec["image_size"])),
+           "reachability": reachability(chain, camera, recon)}
+    if execute is not None:
+        out["task_success"] = task_success(execute(recon))
+    return out
+
+
+def task_success(success) -> dict:
+    """A per-motion success vector as a record: rate, count and the vector (for pairing by episode)."""
+    s = np.asarray(success).astype(int)
+    return {"rate": float(s.mean()), "successes": int(s.sum()), "success": s.tolist()}

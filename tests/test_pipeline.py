@@ -513,3 +513,28 @@ def test_ae_report_on_the_trained_run(run, tmp_path, capsys):
     assert np.isfinite(rec["end_pos_err_mm_median"]) and rec["end_pos_err_mm_p95"] >= rec["end_pos_err_mm_median"]
     assert "end pos err mm" in out.with_suffix(".md").read_text()
     assert _cli.run(ae_report_cli.main, ["--runs", str(tmp_path / "nope"), "--data", str(data)]) == 2
+
+    # --execute: the reference row is the ground-truth replay through the evaluation path (100 %), and
+    # every autoencoder row gains its round trip's task success, episode by episode
+    assert _cli.run(ae_report_cli.main, argv + ["--execute"]) == 0
+    record = json.loads(out.read_text())
+    reference, trained = record["rows"]
+    assert reference["task_success"] == {"rate": 1.0, "successes": 2, "success": [1, 1]}
+    ts = trained["task_success"]
+    assert len(ts["success"]) == 2 and set(ts["success"]) <= {0, 1} and ts["successes"] == sum(ts["success"])
+    assert len(record["seeds"]) == 2 and record["dataset_fingerprint"]
+    assert "| task success |" in out.with_suffix(".md").read_text() and "2 / 2 |" in out.with_suffix(".md").read_text()
+
+
+def test_the_autoencoder_row_executes_the_round_trip_not_the_demos(run):
+    from readjax import ae_eval
+    from readjax.data import store
+
+    data, run_dir = run
+    motions = store.load_dataset(store.split_dir(data, "reach_target", "test")).motion[:3]
+    handed = []
+    res = ae_eval.evaluate_autoencoder(run_dir, motions, execute=lambda m: handed.append(m) or np.array([1, 0, 1]))
+    recon, _ = ae_eval.round_trip(run_dir, motions)
+    np.testing.assert_array_equal(handed[0], recon)
+    assert not np.allclose(recon, motions, atol=1e-4)  # the tiny autoencoder is not the identity
+    assert res["task_success"] == {"rate": 2 / 3, "successes": 2, "success": [1, 0, 1]}
