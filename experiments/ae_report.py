@@ -6,7 +6,7 @@ With --execute, each round trip Dec(Enc(M)) is also executed in MJX in its episo
 through the evaluation path (scene guard, IK, controller, the task's predicate), and the table gains
 its task success; the reference row is then the ground-truth replay (it must read 100 %). That rate
 bounds any plan that is the decoder's output, as READ-L's is: on close_box, READ's autoencoder keeps
-51 of 100 test motions, and READ-L solves 50, 91 of them the same episodes (BENCHMARKS.md 18l).
+51 of 100 test motions, READ-L solves 50, and the two agree on 91 of the 100 episodes (BENCHMARKS.md 18l).
 
 examples:
   python -m experiments.ae_report --runs runs/reach_target/read runs/reach_target/read_kin \\
