@@ -82,6 +82,10 @@ def main(argv=None) -> None:
         from readjax.sim.execute import execute_motions
 
         replay = replay_ground_truth(env, ds, batch_size=args.batch_size)  # the scene guard, then the ground truth
+        if replay["successes"] < len(ds):
+            raise ValueError(f"the ground truth replays at {replay['successes']} / {len(ds)} on {task}'s {args.split} split "
+                             f"(failed seeds {replay['failed_seeds'][:10]}): executed round trips would not measure "
+                             f"the autoencoder here (see experiments.verify)")
         reference.update(name="recorded demos (ground-truth replay)", task_success=ae_eval.task_success(replay["success"]))
         print(f"ground truth replayed: {replay['successes']} / {len(ds)}", flush=True)
         execute = lambda m: execute_motions(env, ds.camera, ds.scenes, m, batch_size=args.batch_size)["success"]

@@ -526,6 +526,27 @@ def test_ae_report_on_the_trained_run(run, tmp_path, capsys):
     assert "| task success |" in out.with_suffix(".md").read_text() and "2 / 2 |" in out.with_suffix(".md").read_text()
 
 
+def test_ae_report_execute_refuses_a_split_whose_ground_truth_fails(run, tmp_path, capsys):
+    """Executed round trips mean something only where the recorded demos themselves succeed."""
+    import h5py
+
+    from experiments import ae_report as ae_report_cli
+
+    data, run_dir = run
+    split = data / "reach_target" / "test"
+    broken = tmp_path / "reach_target" / "test"
+    broken.mkdir(parents=True)
+    for f in split.iterdir():
+        if f.name != "verify.json":
+            (broken / f.name).write_bytes(f.read_bytes())
+    with h5py.File(broken / "shard_00000.h5", "r+") as f:
+        f["motion"][...] = np.asarray(f["motion"])[::-1]  # each episode gets another episode's motion
+    out = tmp_path / "ae.json"
+    argv = ["--runs", str(run_dir), "--data", str(tmp_path), "--execute", "--out", str(out)]
+    assert _cli.run(ae_report_cli.main, argv) == 2
+    assert "the ground truth replays at" in capsys.readouterr().err and not out.exists()
+
+
 def test_the_autoencoder_row_executes_the_round_trip_not_the_demos(run):
     from readjax import ae_eval
     from readjax.data import store
