@@ -19,10 +19,16 @@ import platform
 import resource
 import subprocess
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks; one grid per task there
+    fcntl = None
 
 
 def train_command(python: str, *, task: str, model: str, preset: str, name: str, data, out,
@@ -96,6 +102,12 @@ def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: f
     run's own heartbeat piece from them."""
     if step.timing is None:
         return
+    with _timing_locked(step):
+        _record_timing(step, seconds, load, cpu_seconds, started)
+
+
+def _record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: float | None,
+                   started: float | None) -> None:
     record = _read_timing(step)
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
              "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
@@ -123,8 +135,28 @@ def _read_timing(step: Step) -> dict:
 
 
 def _write_timing(step: Step, record: dict) -> None:
+    """Replace the timing file whole (a temporary file renamed over it): a reader sees the old record
+    or the new one, never a half-written file."""
+    tmp = step.timing.with_name(f"{step.timing.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(record, indent=2))
+    os.replace(tmp, step.timing)
+
+
+@contextmanager
+def _timing_locked(step: Step):
+    """Hold the task's timing file for one read-modify-write. Two grids may run on the same task (a
+    second variant started beside a running grid); without the lock one's write would drop the
+    other's record. The lock is ``flock`` on a sibling ``.lock`` file (not committed: see
+    .gitignore), released when the process dies; where ``fcntl`` is missing (Windows) it is a no-op."""
     step.timing.parent.mkdir(parents=True, exist_ok=True)
-    step.timing.write_text(json.dumps(record, indent=2))
+    with open(step.timing.with_name(step.timing.name + ".lock"), "a") as lock:
+        if fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            if fcntl is not None:
+                fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 UNFINISHED = "unfinished"  # the timing file's pieces of steps that have not finished yet
@@ -143,12 +175,13 @@ def record_piece(step: Step, started: float, seconds: float, cpu_seconds: float 
     the grid dies without a word (``kill -9``, a machine gone)."""
     if step.timing is None or not step.resumes:
         return
-    record = _read_timing(step)
     piece = {"seconds": round(seconds, 1), "kind": step.kind}
     if cpu_seconds:
         piece["cpu_seconds"] = round(cpu_seconds, 1)
-    record.setdefault(UNFINISHED, {}).setdefault(step.label, {})[_piece_key(started)] = piece
-    _write_timing(step, record)
+    with _timing_locked(step):
+        record = _read_timing(step)
+        record.setdefault(UNFINISHED, {}).setdefault(step.label, {})[_piece_key(started)] = piece
+        _write_timing(step, record)
 
 
 def _process_cpu(proc) -> float | None:

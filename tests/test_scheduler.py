@@ -127,3 +127,33 @@ def test_the_train_command_is_one_that_experiments_train_reads_back_field_for_fi
         "RT", "read", "cpu", "table7/K3_L0.5_T2", "d", "o")
     assert args.set == ["retrieval.k=3", "refine.N=10"]
     assert (args.vae_from, args.stage, args.quiet) == ("o/RT/ref", "read", True)
+
+
+def _record_many(timing: str, prefix: str, n: int) -> None:
+    """A second grid's process: ``n`` steps of one task finishing, each recorded in the shared file."""
+    from pathlib import Path
+
+    for k in range(n):
+        step = scheduler.Step("evaluate", "reach_target", f"{prefix} {k}", [], made=lambda: True,
+                              timing=Path(timing))
+        scheduler.record_timing(step, float(k), None)
+
+
+def test_two_grids_on_one_task_lose_no_timing_record(tmp_path):
+    """Two pipelines on the same task (a second variant started beside a running grid) write the same
+    ``pipeline_timing.json``: each read-modify-write holds a lock and replaces the file whole, so no
+    step's record is lost to the other's write and no reader ever sees a half-written file."""
+    import multiprocessing as mp
+
+    timing = tmp_path / "results" / "reach_target" / scheduler.TIMING_FILE
+    n = 60
+    ctx = mp.get_context("spawn")
+    procs = [ctx.Process(target=_record_many, args=(str(timing), p, n)) for p in ("a", "b", "c")]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(120)
+    assert [p.exitcode for p in procs] == [0, 0, 0]  # a reader that met a half-written file would raise
+    steps = json.loads(timing.read_text())["steps"]
+    assert sorted(steps) == sorted(f"{p} {k}" for p in "abc" for k in range(n))
+    assert not list(timing.parent.glob("*.tmp*"))  # no temporary file left behind
