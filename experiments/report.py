@@ -45,7 +45,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--claims", nargs="+", default=None, metavar="ROLE=RUN",
                    help="test the paper's claims (READ above each baseline, READ-O above READ-L, refinement above "
                         "retrieval, recovery from a poor retrieval, robustness to noise and brightness) with paired "
-                        "tests, naming the run of each role: read, deterministic, vpsde, vpsde_cg, read_o, read_l "
+                        "tests, naming the run of each role: read, deterministic, vpsde, vpsde_cg, read_o, read_l, "
+                        "read_o_em (READ-O trained with the other sampler, EM: Table 6) "
                         "(a role not named: the run of its own name), e.g. read=read_v3_5k")
     p.add_argument("--main-preset", default="cpu", choices=preset_names(),
                    help="READ's cells in --main and --claims are evaluations with this preset's refinement "

@@ -141,3 +141,23 @@ def test_training_records_of_the_claimed_runs(tmp_path):
     assert "| read | `r5` | read | unfinished | PB 10 |" in text
     assert text.index("| read |") < text.index("| deterministic |")  # in the roles' order
     assert claims.training_lines([det], {"read": "r5"}, doc) == []  # no claimed run trained
+
+
+def test_read_o_with_each_sampler_is_a_role_of_its_own():
+    """Table 6: READ-O trained with EM is a second READ-O run, played by the ``read_o_em`` role; its
+    evaluations (method ``read_o``) play no other READ-O role, and CD's run plays no EM one."""
+    runs = {"read": "r", "read_o": "cd", "read_o_em": "em"}
+    results = [_result("reach_target", "r", "read", [1] * 20),
+               _result("reach_target", "cd", "read_o", [1] * 20, n=None),
+               _result("reach_target", "em", "read_o", [0] * 12 + [1] * 8, n=None)]
+    rows = _by_claim(claims.evaluate_claims(results, runs, (SDE.update, SDE.rounds)))
+    table6 = rows["READ-O: EM as good as CD (Table 6)"]
+    assert table6["pooled"][:2] == (0, 12) and table6["verdict"].startswith("does not hold")
+    assert rows["READ > READ-O with EM"]["pooled"][:2] == (12, 0) and rows["READ > READ-O with EM"]["verdict"] == "holds"
+    assert rows["READ > READ-O"]["pooled"][:2] == (0, 0)  # READ-O is CD's run, not EM's
+    swapped = _by_claim(claims.evaluate_claims(results, {**runs, "read_o": "em", "read_o_em": "cd"},
+                                                (SDE.update, SDE.rounds)))
+    assert swapped["READ-O: EM as good as CD (Table 6)"]["verdict"] == "holds"
+    assert swapped["READ > READ-O"]["pooled"][:2] == (12, 0)
+    unnamed = _by_claim(claims.evaluate_claims(results, {"read": "r", "read_o": "cd"}, (SDE.update, SDE.rounds)))
+    assert unnamed["READ > READ-O with EM"]["verdict"] == "not measured"  # no run named for the role
