@@ -10,7 +10,6 @@ motions, which must succeed 100 % -- the check that an evaluation measures what 
 from __future__ import annotations
 
 import json
-import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from readjax import failure_modes, provenance, stage_folder, tables, tasks, viz
+from readjax import atomic_write, failure_modes, provenance, stage_folder, tables, tasks, viz
 from readjax import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
@@ -118,9 +117,8 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        tmp = out / f".{name}.json.tmp"  # then renamed: a reader (a parallel grid's copy) never sees half
-        tmp.write_text(json.dumps(result, indent=2))
-        os.replace(tmp, out / f"{name}.json")
+        # a reader (a parallel grid's copy) never sees half of it
+        atomic_write.write_text(out / f"{name}.json", json.dumps(result, indent=2), tmp_name=f".{name}.json.tmp")
         k = min(8, len(ds))
         viz.motion_overlay(ds.rgbd[:k], [("retrieved", plan["retrieved"][:k], (255, 200, 0)),
                                          ("planned", plan["motion"][:k], (0, 200, 255)),

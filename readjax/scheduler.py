@@ -25,6 +25,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
+from readjax import atomic_write
+
 try:
     import fcntl
 except ImportError:  # Windows: no advisory locks; one grid per task there
@@ -102,13 +104,12 @@ def record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: f
     run's own heartbeat piece from them."""
     if step.timing is None:
         return
-    with _timing_locked(step):
-        _record_timing(step, seconds, load, cpu_seconds, started)
+    _update_timing(step, lambda record: _add_finished(record, step, seconds, load, cpu_seconds, started))
 
 
-def _record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: float | None,
-                   started: float | None) -> None:
-    record = _read_timing(step)
+def _add_finished(record: dict, step: Step, seconds: float, load: float | None, cpu_seconds: float | None,
+                  started: float | None) -> None:
+    """:func:`record_timing`'s change to the task's timing record (in place)."""
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
              "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
     earlier = record.get(UNFINISHED, {}).pop(step.label, {})
@@ -125,7 +126,6 @@ def _record_timing(step: Step, seconds: float, load: float | None, cpu_seconds: 
         record.setdefault("repeats", {}).setdefault(step.label, []).append(entry)
     else:
         record["steps"][step.label] = entry
-    _write_timing(step, record)
 
 
 def _read_timing(step: Step) -> dict:
@@ -134,12 +134,14 @@ def _read_timing(step: Step) -> dict:
     return json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
 
 
-def _write_timing(step: Step, record: dict) -> None:
-    """Replace the timing file whole (a temporary file renamed over it): a reader sees the old record
-    or the new one, never a half-written file."""
-    tmp = step.timing.with_name(f"{step.timing.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(record, indent=2))
-    os.replace(tmp, step.timing)
+def _update_timing(step: Step, change: Callable[[dict], None]) -> None:
+    """One read-modify-write of the task's timing file: under its lock (:func:`_timing_locked`), and
+    replacing the file whole, so a reader sees the old record or the new one, never a half-written file."""
+    with _timing_locked(step):
+        record = _read_timing(step)
+        change(record)
+        atomic_write.write_text(step.timing, json.dumps(record, indent=2),
+                                tmp_name=f"{step.timing.name}.tmp{os.getpid()}")
 
 
 @contextmanager
@@ -178,10 +180,11 @@ def record_piece(step: Step, started: float, seconds: float, cpu_seconds: float 
     piece = {"seconds": round(seconds, 1), "kind": step.kind}
     if cpu_seconds:
         piece["cpu_seconds"] = round(cpu_seconds, 1)
-    with _timing_locked(step):
-        record = _read_timing(step)
+
+    def add_piece(record: dict) -> None:
         record.setdefault(UNFINISHED, {}).setdefault(step.label, {})[_piece_key(started)] = piece
-        _write_timing(step, record)
+
+    _update_timing(step, add_piece)
 
 
 def _process_cpu(proc) -> float | None:

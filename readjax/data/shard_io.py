@@ -16,6 +16,7 @@ import numpy as np
 
 import jax
 
+from readjax import atomic_write
 from readjax.sim.env import Scene
 
 # 3: a motion's grip is the commanded gripper state (2 recorded the measured opening, which reads
@@ -30,7 +31,7 @@ class DatasetError(RuntimeError):
 
 def write_meta(path: Path, meta: dict) -> None:
     path.mkdir(parents=True, exist_ok=True)
-    _atomic_write_text(path / "meta.json", json.dumps(meta, indent=2, sort_keys=True))
+    atomic_write.write_text(path / "meta.json", json.dumps(meta, indent=2, sort_keys=True))
 
 
 def read_meta(path: Path) -> dict | None:
@@ -43,14 +44,8 @@ def read_meta(path: Path) -> dict | None:
         raise DatasetError(f"{f} is not valid JSON ({e}); delete the folder to regenerate it") from e
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def write_summary(path: Path, summary: dict) -> None:
-    _atomic_write_text(Path(path) / "summary.json", json.dumps(summary, indent=2, sort_keys=True))
+    atomic_write.write_text(Path(path) / "summary.json", json.dumps(summary, indent=2, sort_keys=True))
 
 
 def encode_depth(depth01: np.ndarray) -> np.ndarray:
