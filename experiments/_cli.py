@@ -48,7 +48,7 @@ def add_split_arguments(p: argparse.ArgumentParser) -> None:
     replay executes (experiments.verify, experiments.tolerance), and how many at once."""
     p.add_argument("--task", required=True, help="task name or paper code")
     p.add_argument("--data", default="data", help="dataset root (holds <task>/<split>/)")
-    p.add_argument("--split", default="test", choices=["train", "test"])
+    p.add_argument("--split", default="test", choices=["train", "test", "val"])
     p.add_argument("--episodes", type=positive_int, default=None, help="the first N episodes (default: all)")
     p.add_argument("--batch-size", type=positive_int, default=32, help="episodes executed together")
 
@@ -66,3 +66,21 @@ def read_json_record(path, key: str, what: str) -> dict:
     if not isinstance(record, dict) or key not in record:
         raise ValueError(f"{path} is not a {what} (no {key!r})")
     return record
+
+
+def add_ray_arguments(p: argparse.ArgumentParser, what: str) -> None:
+    """--ray-address and --resources: where experiments.pipeline and experiments.sweep run their steps
+    (:mod:`readjax.lab.ray_grid`), and what a ``what`` of each kind asks of a node."""
+    from readjax.lab import ray_grid
+
+    shown = "; ".join(f"{kind} " + ", ".join(f"{k}={v / ray_grid.GIB:g} GiB" if k == "memory" else f"{k}={v:g}"
+                                               for k, v in opts.items())
+                      for kind, opts in ray_grid.STEP_RESOURCES.items())
+    p.add_argument("--ray-address", default=None, metavar="HOST:PORT",
+                   help="the Ray cluster to run on (its head's address, as `ray start --head` prints it); default: "
+                        "the RAY_ADDRESS variable, else an embedded Ray on this machine, as many steps at once as "
+                        "it has cores")
+    p.add_argument("--resources", nargs="+", default=[], metavar="KIND:KEY=VALUE,...",
+                   help=f"what a {what} asks of the node that runs it, by KIND, beyond the defaults ({shown}; a "
+                        f"training also num_gpus=1/{ray_grid.TRAININGS_PER_GPU} where the cluster has GPUs); KEY "
+                        f"num_cpus, num_gpus or memory (GiB), e.g. train:num_gpus=0.5,memory=8")

@@ -26,8 +26,9 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=_cli.HelpFormatter)
     names = ", ".join(f"{n} ({c})" for n, c in tasks.codes().items())
     p.add_argument("--task", required=True, help=f"task name or paper code: {names}")
-    p.add_argument("--split", default="train", choices=["train", "test"],
-                   help="train seeds start at 0, test seeds at 1,000,000 (disjoint, fixed)")
+    p.add_argument("--split", default="train", choices=["train", "test", "val"],
+                   help="train seeds start at 0, test seeds at 1,000,000, validation seeds at 2,000,000 "
+                        "(disjoint, fixed); choose settings on val, report test")
     p.add_argument("--episodes", type=_cli.positive_int, default=200, help="successful demos to keep")
     p.add_argument("--out", default="data", help="dataset root; the split goes to OUT/<task>/<split>/")
     p.add_argument("--batch-size", type=_cli.positive_int, default=32,

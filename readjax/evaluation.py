@@ -100,6 +100,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         # which data: the test split as stored (experiments.verify records the same hash) and the
         # training set the run learnt from; a table row is only comparable to rows on the same test split
         "test_fingerprint": test_ds.fingerprint, "train_fingerprint": planner.spec.get("dataset_fingerprint"),
+        "suite": tasks.suite_of(test_ds.meta),  # which version of the tasks the episodes belong to
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(), "commit": provenance.commit(),
     }
@@ -162,6 +163,7 @@ def replay_ground_truth(env, ds: Dataset, batch_size: int = 32) -> dict:
         "success": success.astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         "image_size": ds.image_size, "batch_size": batch_size, "format_version": ds.meta.get("format_version"),
+        "suite": tasks.suite_of(ds.meta),
         "dataset_fingerprint": ds.fingerprint, "commit": provenance.commit(),
         "seconds": {"guard": round(t_guard, 2), "execution": round(time.time() - t0 - t_guard, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),

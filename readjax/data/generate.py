@@ -28,7 +28,8 @@ from readjax.sim.controller import rollout
 from readjax.sim.kinematics import fk
 from readjax.sim.render import DEPTH_FAR, DEPTH_NEAR, SceneRenderer, render_scenes
 
-SPLITS = {"train": 0, "test": 1_000_000}
+# seeds of each split: disjoint ranges (a validation split chooses settings; test reports them)
+SPLITS = {"train": 0, "test": 1_000_000, "val": 2_000_000}
 MAX_ATTEMPT_FACTOR = 3  # give up when the expert fails this often (a broken task)
 
 
@@ -72,7 +73,10 @@ def episode_fn(env):
         plan = env.expert_plan(st0.scene)
         st, trace = rollout(env, st0, plan, env.expert_durations)
         q0 = st0.data.qpos[env.chain.qpos_adr]
-        return st0.scene, st.success & ~st.failure, q0, trace
+        # a seed without a valid placement (no candidate fitted or could be reached) is dropped like
+        # one whose expert fails: RLBench's rule that an unsuccessful demo is not a demo
+        ok = st.success & ~st.failure & st0.scene.params["feasible"]
+        return st0.scene, ok, q0, trace
 
     return jax.jit(jax.vmap(episode), in_shardings=sharding.batch_sharding())
 
@@ -104,6 +108,7 @@ def dataset_meta(cfg: GenerateConfig, env, cam: cam_lib.CameraParams) -> dict:
         "camera_name": cfg.camera, "camera": cam.to_dict(), "depth_near": DEPTH_NEAR, "depth_far": DEPTH_FAR,
         "control_dt": env.control_dt, "episode_steps": env.episode_steps,
         "format_version": store.FORMAT_VERSION, "seed_base": SPLITS[cfg.split],
+        "suite": tasks.SUITE_VERSION,
     }
 
 
@@ -115,6 +120,7 @@ def check_existing(path: Path, meta: dict) -> None:
             raise store.DatasetError(f"{path} holds shards but no meta.json; remove it or choose another --out")
         return
     store.check_format(path, old)
+    store.check_suite(path, old)
     for key in ("task", "split", "image_size", "camera_name"):
         if old.get(key) != meta[key]:
             raise store.DatasetError(
@@ -139,6 +145,7 @@ def generate(cfg: GenerateConfig, progress: bool = True, stop_after_batches: int
     store.write_meta(path, dict(meta, versions=provenance.versions()))
     done = store.read_progress(path)
     kept, attempted_n, failed_n = done.kept, len(done.attempted), len(done.failed)
+    infeasible_n = len(done.infeasible)
     next_seed = int(done.attempted.max() - SPLITS[cfg.split] + 1) if attempted_n else 0
     shard_idx = done.next_shard
     start = time.time()
@@ -157,6 +164,7 @@ def generate(cfg: GenerateConfig, progress: bool = True, stop_after_batches: int
             scenes, ok, q0, trace = run_fn(jnp.asarray(seeds, jnp.int32))  # async: render meanwhile
             rgb, depth = render_scenes(renderer, env, scenes)
             ok = np.asarray(ok)
+            feasible = np.asarray(scenes.params["feasible"])
             # Keep successes in seed order until the target count; later seeds are not attempted.
             need = cfg.episodes - kept
             cum = np.cumsum(ok)
@@ -169,11 +177,13 @@ def generate(cfg: GenerateConfig, progress: bool = True, stop_after_batches: int
                 seeds=seeds[sel], raw_frames=np.full(len(sel), env.episode_steps + 1),
                 scenes=store.take_scenes(scenes, sel),
                 attempted_seeds=seeds[:last], failed_seeds=seeds[:last][~ok],
+                infeasible_seeds=seeds[:last][~feasible[:last]],
             )
             shard_idx += 1
             kept += len(sel)
             attempted_n += last
             failed_n += int((~ok).sum())
+            infeasible_n += int((~feasible[:last]).sum())
             next_seed += last
             bar.update(len(sel))
             bar.set_postfix(expert=f"{kept}/{attempted_n}")
@@ -188,6 +198,10 @@ def generate(cfg: GenerateConfig, progress: bool = True, stop_after_batches: int
         "episodes_attempted": attempted_n,
         "episodes_failed": failed_n,
         "expert_success_rate": kept / max(attempted_n, 1),
+        # RLBench's rule: a seed without a valid placement has no demonstration; the expert's own
+        # success is counted over the seeds that had one
+        "episodes_infeasible": infeasible_n,
+        "expert_success_rate_feasible": kept / max(attempted_n - infeasible_n, 1),
         # summed over the invocations that built the split (a resumed or no-op run adds its own)
         "seconds": round(_previous_seconds(path) + time.time() - start, 2),
         "physics_steps_per_episode": env.episode_steps * env.substeps,

@@ -58,8 +58,10 @@ def decode_depth(depth_u16: np.ndarray) -> np.ndarray:
 
 def write_shard(path: Path, index: int, *, rgb: np.ndarray, depth01: np.ndarray, motion: np.ndarray,
                 joints: np.ndarray, seeds: np.ndarray, raw_frames: np.ndarray, scenes: Scene,
-                attempted_seeds: np.ndarray, failed_seeds: np.ndarray) -> Path:
-    """Write one shard atomically; returns its path."""
+                attempted_seeds: np.ndarray, failed_seeds: np.ndarray,
+                infeasible_seeds: np.ndarray | None = None) -> Path:
+    """Write one shard atomically; returns its path. ``failed_seeds`` are the attempted seeds not kept;
+    ``infeasible_seeds`` those of them without a valid placement (the rest: the expert failed)."""
     n = len(seeds)
     for name, leaf in _scene_leaves(scenes):
         if leaf.shape[:1] != (n,):
@@ -81,6 +83,7 @@ def write_shard(path: Path, index: int, *, rgb: np.ndarray, depth01: np.ndarray,
         f.create_dataset("raw_frames", data=np.asarray(raw_frames, np.int32))
         f.attrs["attempted_seeds"] = np.asarray(attempted_seeds, np.int64)
         f.attrs["failed_seeds"] = np.asarray(failed_seeds, np.int64)
+        f.attrs["infeasible_seeds"] = np.asarray([] if infeasible_seeds is None else infeasible_seeds, np.int64)
         for name, leaf in _scene_leaves(scenes):
             f.create_dataset(f"scene/{name}", data=leaf)
         f.attrs["format_version"] = FORMAT_VERSION
@@ -128,18 +131,20 @@ class Progress:
     attempted: np.ndarray  # all seeds tried so far (kept and failed)
     failed: np.ndarray
     next_shard: int
+    infeasible: np.ndarray  # failed seeds without a valid placement (shards before suite 2: none recorded)
 
 
 def read_progress(path: Path) -> Progress:
-    kept, attempted, failed, nxt = 0, [], [], 0
+    kept, attempted, failed, infeasible, nxt = 0, [], [], [], 0
     for s in shards(path):
         try:
             with h5py.File(s, "r") as f:
                 kept += len(f["seed"])
                 attempted.append(np.asarray(f.attrs["attempted_seeds"]))
                 failed.append(np.asarray(f.attrs["failed_seeds"]))
+                infeasible.append(np.asarray(f.attrs.get("infeasible_seeds", np.zeros((0,), np.int64))))
         except (OSError, KeyError) as e:
             raise DatasetError(f"shard {s} is unreadable ({e}); delete it and re-run to regenerate it") from e
         nxt = max(nxt, int(s.stem.split("_")[1]) + 1)
     cat = lambda xs: np.concatenate(xs) if xs else np.zeros((0,), np.int64)  # noqa: E731
-    return Progress(kept, cat(attempted), cat(failed), nxt)
+    return Progress(kept, cat(attempted), cat(failed), nxt, cat(infeasible))

@@ -111,7 +111,7 @@ class PreparedRun:
         return self.ds.motion[:self.n_train]
 
     def batches(self, spec: base.StageSpec, make) -> base.Batches:
-        """A stage's :class:`base.Batches` over this run's split from ``make(idx, step)``."""
+        """A stage's :class:`base.Batches` over this run's split from ``make(idx, step, rows)``."""
         return base.Batches(make, self.n_train, len(self.ds), spec.batch_size, spec.seed)
 
     def pairs(self):
@@ -146,7 +146,8 @@ def prepare(method: str, task: str, data_root, run_dir, configs: dict, preset: s
         check(cfg_dict, ds)
     spec = {"method": method, "task": task, "preset": preset, "configs": cfg_dict,
             "data_root": str(Path(data_root).resolve()), "dataset_fingerprint": ds.fingerprint,
-            "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict()}
+            "episodes": len(ds), "image_size": image_size, "camera": ds.camera.to_dict(),
+            "suite": tasks.suite_of(ds.meta)}
     base.write_run(run_dir, spec)
     return PreparedRun(task, run_dir, ds, configs, cfg_dict, image_size)
 

@@ -104,6 +104,30 @@ def rollout(env, state, plan: WaypointPlan, durations, ik_iterations: int = 3):
     return state, trace
 
 
+def kinematic_tracking(chain, q0: jax.Array, plan: WaypointPlan, durations, ik_iterations: int = 3,
+                       stride: int = 1):
+    """The expert's IK tracking of a plan without physics: the same interpolated targets and
+    warm-started IK as :func:`rollout`, every ``stride``-th control step (with ``stride`` times the
+    iterations, so the arm keeps up). Returns (max position error m, max orientation error rad,
+    min distance of any joint to its limits rad) over the episode: whether the demonstration's
+    waypoints can be reached along its path, RLBench's ``Task.validate`` without a path planner."""
+    p0, r0 = fk(chain, q0)
+    pos, quat, _ = plan_targets(plan, p0, geo.mat_to_quat(r0), durations)
+    pos, quat = pos[stride - 1::stride], quat[stride - 1::stride]
+    rot = geo.quat_to_mat(quat)
+    lower, upper = jnp.asarray(chain.lower), jnp.asarray(chain.upper)
+
+    def body(q, target):
+        p_t, r_t = target
+        q = ik.solve_ik(chain, q, p_t, r_t, ik_iterations * stride)
+        pe, re = ik.pose_error(chain, q, p_t, r_t)
+        margin = jnp.min(jnp.minimum(q - lower, upper - q))
+        return q, (pe, re, margin)
+
+    _, (pe, re, margin) = lax.scan(body, q0, (pos, rot))
+    return pe.max(), re.max(), margin.min()
+
+
 def joint_targets(q_way: jax.Array, start_q: jax.Array, durations) -> jax.Array:
     """Joint-space interpolation (smoothstep per segment) through waypoints: (T, 7) targets."""
     seg, frac = segment_schedule(durations)

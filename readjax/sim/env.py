@@ -25,12 +25,13 @@ import numpy as np
 from flax import struct
 from jax import lax
 
-from readjax.prng import seed_pure_fn
+from readjax.prng import seed_pure
 from readjax.sim import mjx
-from readjax.sim.controller import WaypointPlan
+from readjax.sim.controller import WaypointPlan, kinematic_tracking
 from readjax.sim.grasp import GraspSpec, GraspState
 from readjax.sim.kinematics import FINGER_JOINTS, FINGER_MAX, HOME_Q, chain_from_model
 from readjax.sim.scene import load_model
+from readjax.sim import placement
 
 GRIPPER_SPEED = 0.1  # m/s per finger: an instant close tunnels through thin walls
 
@@ -70,18 +71,27 @@ class TaskEnv:
     recolour_geoms: ClassVar[tuple[str, ...]] = ()
     expert_durations: ClassVar[tuple[int, ...]] = ()
     substeps: ClassVar[int] = 4
+    # RLBench's rejection of a placement (readjax.sim.placement): candidates drawn until one fits
+    # (SpawnBoundary.MAX_SAMPLES), placements validated until the expert's path is reachable
+    # (TaskEnvironment's 40 reset attempts), and how closely the expert's IK must follow its path
+    max_placement_tries: ClassVar[int] = 100
+    max_validation_tries: ClassVar[int] = 40
+    reach_tolerance: ClassVar[tuple[float, float]] = (0.01, 0.1)  # m, rad
+    joint_limit_margin: ClassVar[float] = 0.02  # rad kept from every joint limit along the path
 
     def __init_subclass__(cls, **kwargs):
-        """Every task's ``sample_scene`` draws from threefry keys (:mod:`readjax.prng`), so a scene is
-        a pure function of (task, seed): the same under any batch size, batch position or jit."""
+        """A task draws candidates (``draw_scene``); only the base class samples scenes, so every
+        scene goes through the same per-seed rejection loop."""
         super().__init_subclass__(**kwargs)
-        hook = cls.__dict__.get("sample_scene")
-        if hook is not None and not getattr(hook, "seed_pure", False):
-            cls.sample_scene = seed_pure_fn(hook)
+        if "sample_scene" in cls.__dict__:
+            raise TypeError(f"{cls.__name__} overrides sample_scene: implement draw_scene (one candidate) "
+                            f"and scene_ok (its geometric checks) instead; TaskEnv.sample_scene rejects")
 
     def __init__(self):
         self.mj_model = load_model(self.xml)
-        self.mx = mjx.put_model(self.mj_model)
+        # this process's own first device: in a multi-process run jax.devices()[0] belongs to process 0
+        device = jax.local_devices()[0]
+        self.mx = mjx.put_model(self.mj_model, device=device)
         self.chain = chain_from_model(self.mj_model)
         self.grasp_spec = GraspSpec(self.mj_model, self.graspable)
         m = self.mj_model
@@ -97,16 +107,63 @@ class TaskEnv:
             pin_v.extend(range(m.jnt_dofadr[jnt], m.jnt_dofadr[jnt] + 6))
         self.pinned_qpos_adr = np.array(pin_q, np.int32)
         self.pinned_qvel_adr = np.array(pin_v, np.int32)
-        self._data0 = mjx.make_data(self.mx)
+        self._data0 = mjx.make_data(self.mx, device=device)
         self.setup()
 
     # ------------------------------------------------------------------ task hooks
     def setup(self) -> None:
         """Read ids of the task's bodies/geoms/joints from ``self.mj_model``."""
 
-    def sample_scene(self, key: jax.Array) -> Scene:
-        """The episode's scene; ``key`` (any implementation) is turned into a threefry key first."""
+    def draw_scene(self, key: jax.Array) -> Scene:
+        """One candidate scene from a threefry ``key``: RLBench's boundary sampling and task placement
+        (:mod:`readjax.sim.placement`), before validation."""
         raise NotImplementedError
+
+    def scene_ok(self, scene: Scene) -> jax.Array:
+        """() bool: a candidate's geometric checks (it fits, nothing overlaps, distances kept)."""
+        return jnp.ones((), bool)
+
+    def sample_scene(self, key: jax.Array) -> Scene:
+        """The episode's scene, RLBench's ``Scene.init_episode`` as a per-seed rejection loop: candidates
+        (``draw_scene``) are drawn until one passes ``scene_ok`` (it fits; at most
+        ``max_placement_tries``), and such placements until the expert can follow its whole path
+        (:meth:`expert_reachable`; at most ``max_validation_tries``). Every draw comes from the seed's
+        own key stream (``key`` of any implementation becomes a threefry key first), so a scene is a
+        function of its seed alone under any batching. ``params["feasible"]`` is False when no
+        placement passed (generation drops such a seed, as it drops one whose expert fails);
+        ``params["placement_tries"]`` counts the validated placements."""
+        key = seed_pure(key)
+        (scene, _), ok, tries = placement.first_accepted(key, self._fitting_candidate, self._validate,
+                                                         self.max_validation_tries)
+        return scene.replace(params={**scene.params, "feasible": ok, "placement_tries": tries})
+
+    def _fitting_candidate(self, key):
+        scene, fits, _ = placement.first_accepted(key, self.draw_scene, self.scene_ok, self.max_placement_tries)
+        return scene, fits
+
+    def _validate(self, candidate) -> jax.Array:
+        scene, fits = candidate
+        return fits & self.expert_reachable(scene)
+
+    def expert_reachable(self, scene: Scene) -> jax.Array:
+        """() bool: the expert's IK follows its whole path (every control step) within
+        ``reach_tolerance`` and keeps ``joint_limit_margin`` from every limit, starting at home."""
+        return self._followable(self.expert_plan(scene))[0]
+
+    def _followable(self, plan: WaypointPlan) -> tuple[jax.Array, jax.Array]:
+        """(whether the arm can follow ``plan`` from home, its smallest joint-limit margin on the way)."""
+        pe, re, margin = kinematic_tracking(self.chain, jnp.asarray(HOME_Q), plan, self.expert_durations)
+        tol_p, tol_r = self.reach_tolerance
+        return (pe < tol_p) & (re < tol_r) & (margin > self.joint_limit_margin), margin
+
+    def easiest_plan(self, plans: WaypointPlan) -> WaypointPlan:
+        """Of candidate expert plans (leaves stacked on a leading axis: the symmetric grasps, approach
+        sides or wrist turns a task can choose from), the one the arm can follow with the widest margin
+        from its joint limits; the first candidate where none can (the scene is then rejected). An
+        expert chooses among its options as RLBench's path planner tries candidate grasps."""
+        ok, margin = jax.vmap(self._followable)(plans)
+        best = jnp.argmax(jnp.where(ok, margin, -10.0 - jnp.arange(margin.shape[0])))
+        return jax.tree.map(lambda x: x[best], plans)
 
     def expert_plan(self, scene: Scene) -> WaypointPlan:
         raise NotImplementedError
@@ -132,7 +189,7 @@ class TaskEnv:
     def goal(self, scene: Scene) -> jax.Array | None:
         """The world point (..., 3) a plan must reach, for tasks with one goal object that a scene
         places freely (RT's sphere, PB's button); None elsewhere. With :meth:`move_goal`, what
-        :mod:`readjax.goal_shift` moves to ask whether a planner reads the goal from the image."""
+        :mod:`readjax.lab.goal_shift` moves to ask whether a planner reads the goal from the image."""
         return None
 
     def move_goal(self, scene: Scene, delta) -> Scene:

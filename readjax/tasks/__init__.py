@@ -29,6 +29,22 @@ _TASKS = {
     "scoop_with_spatula": ("SS", "ScoopWithSpatula"),
     "stack_blocks": ("SB", "StackBlocks"),
 }
+# The suite version: what the 16 tasks are (placement, conditions, experts). Datasets record it, and
+# a split of another version is refused; results carry the version of the test split they ran on.
+SUITE_VERSION = 2
+SUITES = {
+    1: "hand-picked placement boxes with little or no turn (readjax until 2026-12-06)",
+    2: "RLBench's placement: the task at a random workspace pose (yaw from its base_rotation_bounds, "
+       "±pi by default), objects in spawn boundaries, per-seed rejection of unreachable placements; "
+       "RLBench's success and failure conditions",
+}
+
+
+def suite_of(meta: dict) -> int:
+    """The suite version a dataset's meta (or a result) records; 1 for those written before versions."""
+    return int(meta.get("suite", 1))
+
+
 AVG12 = ("PC", "RT", "PB", "OW", "CB", "PR", "SW", "PH", "WP", "BB", "PK", "TP")
 AVG16 = AVG12 + ("SR", "PU", "SS", "SB")
 

@@ -1,15 +1,27 @@
 """BB — beat the buzz: carry the wand's ring along the wire to the far end without touching it.
 
-Adapted from RLBench's ``beat_the_buzz``: its "middle sensor" (the wand detected around the
-pole = a buzz) becomes an exact geometric test: the wand touches the wire when the distance
-between the wire's axis and any wand part's axis (the ring's top and side capsules, the bottom
-bar and the stick approximated by capsules of their half thickness) is below the sum of their
-radii plus 1 mm. This is a sticky failure. Its "right sensor" becomes the finish region (a box
-around where the ring stands on the finish rest); success = ring centre in it AND nothing
-grasped. The wand starts standing on the start rest (RLBench: at the left end of the pole).
+RLBench (``rlbench/tasks/beat_the_buzz.py``): fail condition (terminates) = the wand detected by
+``middle_sensor`` (around the pole); success = the wand detected by ``right_sensor`` AND
+NothingGrasped; no ``base_rotation_bounds`` override, so the whole task model is placed by
+``Scene._place_task`` at a random workspace position with yaw +-pi.
 
-Expert: top-down grasp of the handle stick (fingers closing along the wire), lift 1 cm off the
-rest, slide along the wire to above the finish rest, settle, set it down, open, retreat.
+Here: the base (board, wire, rests, both sensors) is the task frame placed by
+:func:`readjax.sim.placement.place_task` with yaw +-pi; its footprint is the board, 0.40 x 0.10 m
+(the wand's ring, 8 cm across, stays inside it). The wand starts standing on the start rest (x =
+-0.12 in the base frame; RLBench: at one end of the pole). The middle sensor becomes an exact
+geometric test: the wand touches the wire when the distance between the wire's axis and any wand
+part's axis (ring bars and stick as capsules of their half thickness) is below the sum of their
+radii plus 1 mm; a sticky failure. The right sensor becomes the finish region, a box +-3 x +-1.5
+x +-1.5 cm around where the ring stands on the finish rest; success = the ring centre in it AND
+nothing grasped. Sizes (the .ttm is unreadable): a brass wire of 5 mm radius and a square ring of
+6 cm inner width, i.e. 2.5 cm clearance all round, the size of a table-top buzz-wire game whose
+loop a hand can pass along the wire; the 1 mm touch distance stands for the sensor's detection
+range.
+
+Expert: top-down grasp of the handle stick with the fingers closing along the wire (the hand's yaw
+folded modulo pi, the gripper being symmetric, to where joint 7 is mid-range over the traverse),
+lift 1 cm off the rest, slide along the wire to above the finish rest, settle, set it down, open,
+retreat.
 """
 
 from __future__ import annotations
@@ -20,6 +32,7 @@ import numpy as np
 
 from readjax import geometry as geo
 from readjax.sim.controller import WaypointPlan
+from readjax.sim import placement
 from readjax.sim.env import Scene, TaskEnv
 from readjax.tasks.common import down_quat, free_adr, in_box, mocap_index, set_free_body
 
@@ -43,8 +56,7 @@ _PARTS = (
 PART_A = np.array([p[0] for p in _PARTS], np.float32)
 PART_B = np.array([p[1] for p in _PARTS], np.float32)
 PART_R = np.array([p[2] for p in _PARTS], np.float32)
-LOW, HIGH = np.array([0.45, -0.08]), np.array([0.58, 0.08])
-YAW_RANGE = np.pi / 6
+FOOTPRINT = np.array([0.2, 0.05], np.float32)  # the board's half size: the task's bounding box
 
 
 def segment_distance(p0, p1, q0, q1):
@@ -81,10 +93,8 @@ class BeatTheBuzz(TaskEnv):
     def base_frame(self, scene: Scene):
         return scene.params["base"], geo.rot_z(scene.params["yaw"])
 
-    def sample_scene(self, key):
-        k_xy, k_yaw = jax.random.split(key)
-        xy = jax.random.uniform(k_xy, (2,), minval=jnp.asarray(LOW), maxval=jnp.asarray(HIGH))
-        yaw = jnp.pi / 2 + jax.random.uniform(k_yaw, (), minval=-YAW_RANGE, maxval=YAW_RANGE)
+    def draw_scene(self, key):
+        xy, yaw, fits = placement.place_task(key, -FOOTPRINT, FOOTPRINT)
         base = jnp.array([xy[0], xy[1], 0.0])
         rot = geo.rot_z(yaw)
         scene = self.default_scene()
@@ -92,7 +102,18 @@ class BeatTheBuzz(TaskEnv):
         mquat = scene.mocap_quat.at[self.base_mocap].set(geo.yaw_quat(yaw))
         wand = base + rot @ jnp.array([START_X, 0.0, WIRE_Z + DROP])
         qpos = set_free_body(scene.qpos, self.wand_qadr, wand, geo.yaw_quat(yaw))
-        return scene.replace(qpos=qpos, mocap_pos=mpos, mocap_quat=mquat, params={"base": base, "yaw": yaw})
+        return scene.replace(qpos=qpos, mocap_pos=mpos, mocap_quat=mquat,
+                             params={"base": base, "yaw": yaw, "fits": fits})
+
+    def scene_ok(self, scene):
+        return scene.params["fits"]
+
+    @staticmethod
+    def hand_yaw(base, yaw):
+        """The hand's yaw: fingers closing along the wire (yaw - pi/2), folded modulo pi to within pi/2
+        of where joint 7 is mid-range at the base (q7 ~ 0.785 + atan2(y, x) - hand yaw)."""
+        mid = jnp.arctan2(base[1], base[0]) + 0.785
+        return mid + (yaw - jnp.pi / 2 - mid + jnp.pi / 2) % jnp.pi - jnp.pi / 2
 
     def expert_plan(self, scene: Scene) -> WaypointPlan:
         base, rot = self.base_frame(scene)
@@ -109,7 +130,7 @@ class BeatTheBuzz(TaskEnv):
             [FINISH_X, 0.0, g + 0.10],  # retreat
         ])
         pos = base + local @ rot.T
-        quat = jnp.tile(down_quat(scene.params["yaw"] - jnp.pi / 2), (local.shape[0], 1))
+        quat = jnp.tile(down_quat(self.hand_yaw(base, scene.params["yaw"])), (local.shape[0], 1))
         grip = jnp.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0])
         return WaypointPlan(pos=pos, quat=quat, grip=grip)
 

@@ -1,14 +1,26 @@
 """OW — open wine: grasp the bottle's screw cap, turn it > 150 degrees, lift it off the mouth.
 
-RLBench's ``open_wine_bottle`` keeps the cap on a revolute joint and frees it once the joint
-has turned 150 degrees. Grasping here is a kinematic attachment (a carried cap goes wherever
-the hand goes, through any "thread"), so the thread is in the predicate instead: the cap's
-turn about the bottle axis is accumulated (unwrapped, either direction) at every control step
-while its centre is in the mouth region; success = turned > 150 degrees while on the mouth, THEN
-the cap's centre outside the region; the cap leaving the region before that is a (sticky)
-failure — RLBench's cap cannot come free untwisted. RLBench also requires the gripper to be
-empty at the end; TASKS.md's condition does not, and neither does this module. The bottle is a
-pinned fixture, so RLBench's "bottle still in place" sensor always holds and is left out.
+RLBench (``rlbench/tasks/open_wine_bottle.py``): the cap is parented to a force sensor on the bottle
+and freed (re-parented to the joint) once ``JointCondition(joint, 150 deg)`` holds (l.21-22, 34-38).
+The only success condition is ``DetectedCondition(cap, cap_detector, negated=True)`` (l.19-20): the
+cap is no longer in the detector volume at the bottle's mouth. No failure condition; no
+``NothingGrasped`` (imported at l.8, never registered), so the cap may still be held at the end. The
+task overrides neither ``is_static_workspace`` nor ``base_rotation_bounds``: the whole model is placed
+at a random workspace pose with yaw +-pi (``backend/scene.py:529-537``). One variation.
+
+readjax: the bottle (the task model; its bounding box is the glass's 7.4 cm square) is placed by
+:func:`readjax.sim.placement.place_task` with yaw +-pi; the cap rests on it, turned with it. Grasping
+is a kinematic attachment (a carried cap goes wherever the hand goes, through any "thread"), so the
+thread is in the predicate instead: the cap's turn about the bottle axis is accumulated (unwrapped,
+either direction) at every control step while its centre is in the mouth region (``cap_detector``);
+progress "unscrewed" = turned > 150 degrees while on the mouth, and success = unscrewed AND the
+cap's centre outside the region (RLBench's negated DetectedCondition once the cap is free). The cap
+leaving the region before the twist is a (sticky) failure: RLBench's cap cannot come free untwisted
+(it is parented to the bottle), so that state does not exist there; here it stands for it.
+
+Sizes (RLBench's are in ``open_wine_bottle.ttm``, unreadable here): a 75 cl bottle (glass radius
+3.7 cm, mouth at 0.285 m), a 3.2 cm screw cap 4 cm tall, the detector a 6 x 6 x 8 cm box around the
+cap's resting pose (tasks_mjcf/open_wine.xml).
 
 Expert: top-down grasp of the cap at the yaw (modulo the square cap's 90 degrees) that leaves
 joint 7 room for the turn, a 165 degree counter-clockwise turn (unscrewing) in three segments,
@@ -22,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from readjax import geometry as geo
+from readjax.sim import placement
 from readjax.sim.controller import WaypointPlan
 from readjax.sim.env import Scene, TaskEnv
 from readjax.tasks.common import down_quat, free_adr, in_box, mocap_index, set_free_body
@@ -34,7 +47,7 @@ REGION_CENTRE = np.array([0.0, 0.0, 0.305], np.float32)  # in the bottle frame (
 REGION_HALF = np.array([0.03, 0.03, 0.04], np.float32)
 GRASP_Z = 0.308  # tcp height on the cap
 LIFT_Z = 0.42
-LOW, HIGH = (0.38, -0.22), (0.62, 0.22)
+FOOTPRINT = np.array([0.037, 0.037], np.float32)  # the bottle's half size: the task's bounding box
 
 
 def wrap(a: jax.Array) -> jax.Array:
@@ -65,10 +78,8 @@ class OpenWine(TaskEnv):
         self.cap_qadr = free_adr(m, "cap")
         self.bottle_mocap = mocap_index(m, "bottle")
 
-    def sample_scene(self, key):
-        k_xy, k_yaw = jax.random.split(key)
-        xy = jax.random.uniform(k_xy, (2,), minval=jnp.array(LOW), maxval=jnp.array(HIGH))
-        yaw = jax.random.uniform(k_yaw, (), minval=-jnp.pi, maxval=jnp.pi)
+    def draw_scene(self, key):
+        xy, yaw, fits = placement.place_task(key, -FOOTPRINT, FOOTPRINT)
         scene = self.default_scene()
         pos = jnp.array([xy[0], xy[1], 0.0])
         quat = geo.yaw_quat(yaw)
@@ -76,7 +87,10 @@ class OpenWine(TaskEnv):
         mocap_pos = scene.mocap_pos.at[self.bottle_mocap].set(pos)
         mocap_quat = scene.mocap_quat.at[self.bottle_mocap].set(quat)
         return scene.replace(qpos=qpos, mocap_pos=mocap_pos, mocap_quat=mocap_quat,
-                             params={"bottle": pos, "yaw": yaw})
+                             params={"bottle": pos, "yaw": yaw, "fits": fits})
+
+    def scene_ok(self, scene):
+        return scene.params["fits"]
 
     def expert_plan(self, scene: Scene) -> WaypointPlan:
         b = scene.params["bottle"]

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from readjax import tasks
-from readjax.tasks.beat_the_buzz import FINISH_X, START_X, WIRE_Z, segment_distance
+from readjax.sim import placement
+from readjax.tasks.beat_the_buzz import FINISH_X, FOOTPRINT, START_X, WIRE_Z, segment_distance
 from tests.tasks.helpers import expert_run, grasping, hand_built, judge
 
 
@@ -76,8 +77,29 @@ def test_truth_table(env, scene, local, attached, expected):
     assert (ok, fail) == expected
 
 
+def test_placement_is_rlbench_task_placement(env):
+    """The whole base is placed with yaw +-pi and its footprint inside the workspace; the wand starts
+    on the start rest of the turned base."""
+    keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(0), i))(jnp.arange(256))
+    scenes = jax.jit(jax.vmap(env.draw_scene))(keys)
+    fits = np.asarray(scenes.params["fits"])
+    assert fits.mean() > 0.99
+    yaw, base = np.asarray(scenes.params["yaw"]), np.asarray(scenes.params["base"])
+    assert yaw.min() < -2.8 and yaw.max() > 2.8 and np.histogram(yaw, 4, (-np.pi, np.pi))[0].min() > 40
+    c, s = np.cos(yaw), np.sin(yaw)
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            corner = base[:, :2] + np.stack([c * sx * FOOTPRINT[0] - s * sy * FOOTPRINT[1],
+                                             s * sx * FOOTPRINT[0] + c * sy * FOOTPRINT[1]], -1)
+            inside = np.all((corner >= placement.WORKSPACE_LOW - 1e-5) & (corner <= placement.WORKSPACE_HIGH + 1e-5), -1)
+            assert np.all(inside[fits])
+    wand = np.asarray(scenes.qpos[:, env.wand_qadr:env.wand_qadr + 3])
+    start = base[:, :2] + START_X * np.stack([c, s], -1)
+    np.testing.assert_allclose(wand[:, :2], start, atol=1e-5)
+
+
 def test_expert_succeeds(env):
     scenes, ok, _, trace = expert_run("beat_the_buzz")
-    assert ok.sum() >= len(ok) - 1
+    assert scenes.params["feasible"].all() and ok.sum() >= len(ok) - 1
     # the demo ends with the gripper open, away from the wand (it was let go)
     assert np.all(trace.grip[:, -1] > 0.9)

@@ -90,6 +90,26 @@ def test_grasp_yaw_window(env):
         assert abs(k - round(k)) < 1e-4  # face-aligned with the square cap
 
 
+def test_placement_is_rlbench_place_task(env):
+    """The whole task turned by yaw +-pi anywhere its footprint fits the workspace; every early seed
+    placeable; the cap rests on the mouth turned with the bottle."""
+    from readjax.sim import placement
+    from readjax.tasks.open_wine import FOOTPRINT
+    keys = jax.vmap(jax.random.key)(jnp.arange(48))
+    scenes = jax.jit(jax.vmap(env.sample_scene))(keys)
+    yaw = np.asarray(scenes.params["yaw"])
+    assert yaw.min() < -2.5 and yaw.max() > 2.5
+    xy = np.asarray(scenes.params["bottle"])[:, :2]
+    assert np.all(xy - FOOTPRINT >= placement.WORKSPACE_LOW - 1e-6)
+    assert np.all(xy + FOOTPRINT <= placement.WORKSPACE_HIGH + 1e-6)
+    assert np.ptp(xy[:, 0]) > 0.3 and np.ptp(xy[:, 1]) > 0.5  # spread over the workspace, not a patch
+    assert np.all(np.asarray(scenes.params["feasible"]))
+    cap = np.asarray(scenes.qpos)[:, env.cap_qadr:env.cap_qadr + 7]
+    np.testing.assert_allclose(cap[:, :2], xy, atol=1e-6)
+    np.testing.assert_allclose(np.abs(np.sum(cap[:, 3:] * np.asarray(scenes.mocap_quat)[:, env.bottle_mocap], -1)),
+                               1.0, atol=1e-5)
+
+
 def test_expert_succeeds(env):
     _, ok, _, trace = expert_run("open_wine")
     assert ok.sum() >= len(ok) - 1

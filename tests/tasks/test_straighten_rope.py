@@ -1,4 +1,5 @@
-"""SR: truth table on straight / S-shaped / shifted ropes, the S layout, expert success."""
+"""SR: truth table on straight / S-shaped / shifted ropes, the fixed S placed as a whole (yaw ±pi, full
+workspace), invisible sensors, the drag each end needs, expert success."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ import pytest
 
 from readjax import geometry as geo
 from readjax import tasks
-from readjax.tasks.straighten_rope import LINK, N_LINKS, RADIUS, REGION_HALF, SLACK, SPAN
+from readjax.sim import placement
+from readjax.tasks.straighten_rope import FOOTPRINT, LINK, N_LINKS, RADIUS, REGION_HALF, SLACK, SPAN
 from tests.tasks.helpers import expert_run, grasping, hand_built, judge
 
 
@@ -50,7 +52,7 @@ def test_start_is_not_solved(env):
         # the S's ends lie on the axis, well inside the targets
         u = np.array([np.cos(float(s.params["axis"])), np.sin(float(s.params["axis"]))])
         along = (np.asarray(data.geom_xpos[env.head_geom, :2]) - np.asarray(s.params["head_target"])) @ u
-        assert along > REGION_HALF[0] + 0.03
+        assert along > REGION_HALF[0] + 0.07
 
 
 @pytest.mark.parametrize(
@@ -84,6 +86,43 @@ def test_one_end_is_not_enough(env, scene):
 def test_targets_match_a_straight_rope(env, scene):
     h, t = np.asarray(scene.params["head_target"]), np.asarray(scene.params["tail_target"])
     assert np.linalg.norm(t - h) == pytest.approx(SLACK * (N_LINKS - 1) * LINK, abs=1e-5)
+
+
+@pytest.fixture(scope="module")
+def scenes(env):
+    keys = jax.vmap(jax.random.key)(np.arange(64))
+    return jax.tree.map(np.asarray, jax.jit(jax.vmap(env.sample_scene))(keys))
+
+
+def test_placement_is_rlbench_s(env, scenes):
+    """The one S shape, turned anywhere in ±pi and placed anywhere its footprint fits the workspace;
+    each end must be dragged ~10 cm along the axis (and turned 90 degrees)."""
+    p = scenes.params
+    assert p["feasible"].mean() > 0.9
+    axis = p["axis"]
+    assert np.histogram(axis, bins=4, range=(-np.pi, np.pi))[0].min() >= 8  # the full turn
+    centre = 0.5 * (p["head_target"] + p["tail_target"])
+    assert np.ptp(centre[:, 0]) > 0.15 and np.ptp(centre[:, 1]) > 0.4  # over the workspace
+    for c, a in zip(centre, axis):  # the turned footprint inside the workspace
+        lo, hi = (np.asarray(v) for v in placement.turned_extent(FOOTPRINT[0], FOOTPRINT[1], a))
+        assert np.all(c + lo >= placement.WORKSPACE_LOW - 1e-5)
+        assert np.all(c + hi <= placement.WORKSPACE_HIGH + 1e-5)
+    drag = [np.linalg.norm(p[e] - p[f"{e}_target"], axis=-1) for e in ("head", "tail")]
+    assert np.allclose(drag, 0.099, atol=0.002)  # fixed shape: (0.95 * 0.44 - 0.224) / 2
+    turn = np.cos(p["head_heading"] - axis)  # the head link (its middle at s = 1/24) leaves at ~87 degrees
+    assert np.allclose(turn, np.cos(np.pi / 2 * np.cos(np.pi / 12)), atol=1e-4)
+    # the arm must reach far: some ends or sensors lie beyond 0.7 m from the base
+    reach = np.linalg.norm(np.concatenate([p["head_target"], p["tail_target"]]), axis=-1)
+    assert reach.max() > 0.7
+
+
+def test_sensors_are_not_rendered(env):
+    m = env.mj_model
+    for body in ("head_target", "tail_target"):
+        b = m.body(body).id
+        assert m.body_geomnum[b] == 0  # no geom to draw
+        sites = np.flatnonzero(m.site_bodyid == b)
+        assert len(sites) == 1 and m.site_group[sites[0]] > 2  # hidden by the renderer's default groups
 
 
 def test_expert_succeeds(env):
