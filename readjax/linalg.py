@@ -82,21 +82,33 @@ def cho_solve(c_and_lower, b, overwrite_b: bool = False, check_finite: bool = Tr
     return solve_upper_t(l, solve_lower(l, jnp.asarray(b)))
 
 
-_installed = False
+_original = None  # jax.scipy.linalg's own (cho_factor, cho_solve), kept when the replacements go in
+
+
+def cho_factor_on_cpu(*args, **kwargs):
+    """``jax.scipy.linalg.cho_factor`` once installed: :func:`cho_factor` on the CPU backend, the
+    original elsewhere (the backend is looked up at the call)."""
+    return (cho_factor if jax.default_backend() == "cpu" else _original[0])(*args, **kwargs)
+
+
+def cho_solve_on_cpu(*args, **kwargs):
+    """``jax.scipy.linalg.cho_solve`` once installed: :func:`cho_solve` on the CPU, the original elsewhere."""
+    return (cho_solve if jax.default_backend() == "cpu" else _original[1])(*args, **kwargs)
 
 
 def install_cpu_cholesky(force: bool = False) -> bool:
     """Route ``jax.scipy.linalg.cho_factor/cho_solve`` through the pure-jnp versions.
 
-    Only on the CPU backend (GPU solvers have no such deadlock), unless ``force``.
-    Returns whether the replacement is active.
+    Only on the CPU backend (GPU solvers have no such deadlock), unless ``force``. The backend is
+    looked up at each call (:func:`cho_factor_on_cpu`), not here: installing (``import readjax``)
+    does not start JAX's backend, so a process may still join a multi-process run afterwards
+    (:mod:`readjax.distributed`). Returns whether a replacement is installed (always).
     """
-    global _installed
-    if _installed:
-        return True
-    if not force and jax.default_backend() != "cpu":
-        return False
-    jsl.cho_factor = cho_factor
-    jsl.cho_solve = cho_solve
-    _installed = True
+    global _original
+    if _original is None:
+        _original = (jsl.cho_factor, jsl.cho_solve)
+    if force:
+        jsl.cho_factor, jsl.cho_solve = cho_factor, cho_solve
+    else:
+        jsl.cho_factor, jsl.cho_solve = cho_factor_on_cpu, cho_solve_on_cpu
     return True

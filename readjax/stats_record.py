@@ -14,19 +14,22 @@ from pathlib import Path
 
 import numpy as np
 
+from readjax import atomic_write, distributed
 from readjax.training import CheckpointError
 
 
 def write(path: Path, mean, std, what: str, atol: float, **extra) -> None:
     """Record ``mean``/``std`` (plus ``extra`` JSON fields) at ``path``; if the file exists, it must
-    hold the same values within ``atol`` (``what`` names them in the error)."""
+    hold the same values within ``atol`` (``what`` names them in the error). In a multi-process
+    training every process checks a recorded file and the primary writes a new one."""
     mean, std = np.asarray(mean, np.float32), np.asarray(std, np.float32)
     if path.exists():
         old_mean, old_std = read(path, what, hint="")
         if not (np.allclose(old_mean, mean, atol=atol) and np.allclose(old_std, std, atol=atol)):
             raise CheckpointError(f"{path} holds other {what}; use a new --out/--name or --restart")
         return
-    path.write_text(json.dumps({"mean": mean.tolist(), "std": std.tolist(), **extra}, indent=1))
+    if distributed.is_primary():
+        atomic_write.write_text(path, json.dumps({"mean": mean.tolist(), "std": std.tolist(), **extra}, indent=1))
 
 
 def read(path: Path, what: str, hint: str) -> tuple[np.ndarray, np.ndarray]:

@@ -4,7 +4,10 @@ step, orbax checkpoints that resume exactly, a JSONL metrics log and a loss-curv
 A model supplies ``loss_fn(params, batch, rng) -> (loss, metrics)`` and initial parameters; the data
 side supplies ``sample_batch(step) -> batch`` — a pure function of the step, so a run killed and
 resumed from its latest checkpoint sees exactly the batches an uninterrupted run would have seen
-(no step lost, none repeated). The batch is sharded over ``jax.devices()`` on its leading axis.
+(no step lost, none repeated). The batch is sharded over ``jax.devices()`` on its leading axis;
+in a multi-process training (:mod:`readjax.distributed`) those are every process's devices, each
+process builds its rows of the batch, every process checkpoints (orbax writes once) and only the
+primary writes the stage's records.
 """
 
 from __future__ import annotations
@@ -24,34 +27,9 @@ import orbax.checkpoint as ocp
 from flax import struct
 from tqdm.auto import tqdm
 
-from readjax import provenance, sharding, stage_folder
-from readjax.config import field_defaults, without_inference_only
-
-
-def _field_default(section: str, name: str):
-    """The dataclass default of a config field (``missing`` if unknown)."""
-    return field_defaults(section).get(name, _MISSING)
-
-
-_MISSING = object()
-
-
-def with_new_defaults(old: dict, new: dict) -> dict:
-    """A stage recorded by an older readjax lacks config fields added since; such a field counts as
-    unchanged when the new config holds its default (new fields default to the old behaviour)."""
-    out = {}
-    for section, values in old.items():
-        if isinstance(values, dict) and isinstance(new.get(section), dict):
-            values = dict(values)
-            for k, v in new[section].items():
-                if k not in values and _field_default(section, k) == v:
-                    values[k] = v
-        out[section] = values
-    return out
-
-
-class CheckpointError(RuntimeError):
-    """A checkpoint is missing, corrupted, or belongs to another config/dataset."""
+from readjax import atomic_write, distributed, provenance, sharding, stage_folder
+from readjax.stage_identity import (CheckpointError, check_shareable_stage, copy_finished_stage,  # noqa: F401
+                                    identity_mismatch, with_new_defaults)  # noqa: F401  (re-exported)
 
 
 @struct.dataclass
@@ -129,55 +107,6 @@ def make_train_step(loss_fn: Callable, optimizer: optax.GradientTransformation, 
     return jax.jit(train_step, donate_argnums=(0,))
 
 
-def identity_mismatch(stage_json: Path, config: dict, fingerprint: str) -> str | None:
-    """Why a stage recorded in ``stage_json`` is not one trained with ``config`` on the dataset
-    ``fingerprint`` (None: it is). Inference-only fields are not compared; fields the record
-    predates count at their defaults."""
-    try:
-        old = json.loads(Path(stage_json).read_text())
-    except json.JSONDecodeError as e:
-        raise CheckpointError(f"{stage_json} is corrupted ({e}); move the run away or use a new --out") from e
-    if old.get("dataset_fingerprint") != fingerprint:
-        return f"was trained on dataset {old.get('dataset_fingerprint')}, not {fingerprint}"
-    config = json.loads(json.dumps(config))
-    old_config = without_inference_only(with_new_defaults(old.get("config", {}), config))
-    new_config = without_inference_only(config)
-    if old_config != new_config:
-        diff = sorted(k for k in set(old_config) | set(new_config) if old_config.get(k) != new_config.get(k))
-        return f"was trained with another config (differs in {diff})"
-    return None
-
-
-def check_shareable_stage(source_run: str | Path, name: str, config: dict, fingerprint: str) -> None:
-    """Raise CheckpointError unless ``source_run`` has a finished stage ``name`` trained with
-    ``config`` on the dataset ``fingerprint`` (what :func:`copy_finished_stage` may copy). Writes
-    nothing: callers run it before they create a run folder, so a refusal leaves no trace."""
-    src = Path(source_run) / name
-    if not (src / stage_folder.STAGE_FILE).exists() or not stage_folder.is_finished(src):
-        raise CheckpointError(f"{src} is not a finished {name!r} stage (no stage.json / stop.json); "
-                              "train it first or drop the option")
-    why = identity_mismatch(src / stage_folder.STAGE_FILE, config, fingerprint)
-    if why:
-        raise CheckpointError(f"{src} cannot be shared: it {why}")
-
-
-def copy_finished_stage(source_run: str | Path, run_dir: str | Path, name: str, config: dict,
-                        fingerprint: str) -> bool:
-    """Start ``run_dir``'s stage ``name`` as a copy of the same, finished stage of ``source_run``
-    (runs that differ only in what later stages read share it: READ variants share the autoencoder).
-    Refused, with nothing written, when the source stage is unfinished or was trained with another
-    config or dataset. Returns False (nothing done) when ``run_dir`` already has the stage."""
-    import shutil
-
-    src, dst = Path(source_run) / name, Path(run_dir) / name
-    if dst.exists():
-        return False
-    check_shareable_stage(source_run, name, config, fingerprint)
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    shutil.copytree(src, dst)
-    return True
-
-
 class Stage:
     """One training stage in ``run_dir/<name>/`` (its files: :mod:`readjax.stage_folder`)."""
 
@@ -203,8 +132,8 @@ class Stage:
             why = identity_mismatch(f, self.config, self.fingerprint)
             if why:
                 raise CheckpointError(f"{self.dir} {why}; use a new --out (or --restart to overwrite)")
-        else:
-            f.write_text(json.dumps(dict(meta, versions=provenance.versions()), indent=2, sort_keys=True))
+        elif distributed.is_primary():
+            atomic_write.write_text(f, json.dumps(dict(meta, versions=provenance.versions()), indent=2, sort_keys=True))
 
     # -------------------------------------------------------------- checkpoints
     def latest_step(self) -> int | None:
@@ -246,24 +175,27 @@ class Stage:
         spec = self.spec
         optimizer = make_optimizer(spec)
         state = TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=optimizer.init(params))
+        state = sharding.replicate(state)
         if self.latest_step() is not None:
             state = self.restore(state)
         start = int(state.step)
         finished = self.stop_record()
         if finished is not None and finished["stopped_at"] == start:
             return state  # finished before (converged or at the cap)
-        self._truncate_metrics(start)
-        history = [(r["step"], r["val_loss"]) for r in self.metrics() if "val_loss" in r]
-        state = jax.device_put(state, sharding.replicated())
+        # lines past the checkpoint are ignored (every process) and dropped (the primary): recomputed below
+        history = [(r["step"], r["val_loss"]) for r in self.metrics() if "val_loss" in r and r["step"] <= start]
+        primary = distributed.is_primary()
+        if primary:
+            self._truncate_metrics(start)
         step_fn = make_train_step(loss_fn, optimizer, jax.random.key(spec.seed))
         val_loss = make_val_loss(loss_fn, val_batches, spec.seed) if val_batches else None
         end = spec.steps if stop_at is None else min(stop_at, spec.steps)
-        bar = _bar(progress, self.name, spec.steps, start)
-        log = open(self.dir / stage_folder.METRICS_FILE, "a")
+        bar = _bar(progress and primary, self.name, spec.steps, start)
+        log = open(self.dir / stage_folder.METRICS_FILE, "a") if primary else None
         t0, acc, stop = time.time(), [], None
         try:
             for step in range(start, end):
-                batch = sharding.shard_batch(sample_batch(step))
+                batch = distributed.global_batch(sample_batch, step, spec.batch_size)
                 state, metrics = step_fn(state, batch)
                 acc.append(metrics)
                 validate = val_loss is not None and ((step + 1) % spec.val_every == 0 or step + 1 == spec.steps)
@@ -276,8 +208,9 @@ class Stage:
                         stop = stop_decision(history, spec)
                     if not all(math.isfinite(v) for v in m.values()):
                         raise FloatingPointError(f"{self.name}: non-finite metrics at step {step + 1}: {m}")
-                    log.write(json.dumps({"step": step + 1, "time_s": round(time.time() - t0, 2), **m}) + "\n")
-                    log.flush()
+                    if log is not None:
+                        log.write(json.dumps({"step": step + 1, "time_s": round(time.time() - t0, 2), **m}) + "\n")
+                        log.flush()
                     bar.set_postfix(loss=f"{m['loss']:.4g}", **({"val": f"{m['val_loss']:.4g}"} if validate else {}))
                 if (step + 1) % spec.ckpt_every == 0 or step + 1 == end or stop is not None:
                     self.save(state)
@@ -286,15 +219,18 @@ class Stage:
                     break
         finally:
             bar.close()
-            log.close()
+            if log is not None:
+                log.close()
         if stop is None and int(state.step) == spec.steps:
             stop = {"stopped_at": spec.steps, "reason": "step cap", "rule": f"{spec.steps} steps"}
             if history:
                 best_step, best = min(history, key=lambda h: h[1])
                 stop.update(best_val_loss=best, best_step=best_step)
-        if stop is not None:
-            (self.dir / stage_folder.STOP_FILE).write_text(json.dumps(stop, indent=2))
-        self.plot()
+        if primary:
+            if stop is not None:
+                atomic_write.write_text(self.dir / stage_folder.STOP_FILE, json.dumps(stop, indent=2))
+            self.plot()
+        distributed.barrier(f"{self.dir}:fitted")  # the others read stop.json only once it is there
         return state
 
     def _truncate_metrics(self, step: int) -> None:
@@ -303,7 +239,7 @@ class Stage:
         if not f.exists():
             return
         keep = [ln for ln in f.read_text().splitlines() if ln.strip() and json.loads(ln)["step"] <= step]
-        f.write_text("".join(ln + "\n" for ln in keep))
+        atomic_write.write_text(f, "".join(ln + "\n" for ln in keep))
 
     def metrics(self) -> list[dict]:
         return stage_folder.read_metrics(self.dir)

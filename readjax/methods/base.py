@@ -12,7 +12,7 @@ from typing import Any, Callable, Protocol, runtime_checkable
 
 import numpy as np
 
-from readjax import provenance
+from readjax import atomic_write, distributed, provenance
 from readjax.config import TrainConfig
 from readjax.data import store
 from readjax.training import (CheckpointError, Stage, StageSpec, TrainState, batch_indices, make_optimizer,
@@ -54,7 +54,8 @@ class MethodModel(Protocol):
 
 
 def write_run(run_dir: Path, spec: dict) -> None:
-    """Record what a run is (method, task, configs, dataset); refuse to mix two runs in one folder."""
+    """Record what a run is (method, task, configs, dataset); refuse to mix two runs in one folder.
+    (In a multi-process training every process checks a recorded run, the primary writes a new one.)"""
     run_dir.mkdir(parents=True, exist_ok=True)
     f = run_dir / "run.json"
     spec = json.loads(json.dumps(spec))  # as it will read back (tuples -> lists)
@@ -66,7 +67,8 @@ def write_run(run_dir: Path, spec: dict) -> None:
                 raise CheckpointError(f"{run_dir} holds a run with another {key}; use a new --out/--name "
                                       f"or --restart")
         return
-    f.write_text(json.dumps(dict(spec, versions=provenance.versions()), indent=2, sort_keys=True))
+    if distributed.is_primary():
+        atomic_write.write_text(f, json.dumps(dict(spec, versions=provenance.versions()), indent=2, sort_keys=True))
 
 
 def read_run(run_dir: str | Path) -> dict:
@@ -120,26 +122,32 @@ def train_size(n: int, train: TrainConfig) -> int:
 
 @dataclass(frozen=True)
 class Batches:
-    """A stage's data. ``make(idx, step)`` builds the batch of demos ``idx`` (``step`` seeds any
-    other per-batch choice, e.g. the neighbour). Training batches (``batches(step)``) draw from the
-    first ``n_train`` demos, a pure function of the step (exact resume); ``validation()`` covers the
-    held-out rest in fixed batches of the same size (None without a validation split)."""
+    """A stage's data. ``make(idx, step, rows)`` builds the rows ``rows`` (a slice) of the batch of
+    demos ``idx`` (``step`` seeds any other per-batch choice, e.g. the neighbour, drawn for the whole
+    batch so that a part equals the same rows of the whole). Training batches (``batches(step)``)
+    draw from the first ``n_train`` demos, a pure function of the step (exact resume);
+    ``batches.rows(step, rows)`` is a part of one (a process's share in a multi-process training);
+    ``validation()`` covers the held-out rest in fixed batches of the same size (None without a
+    validation split)."""
 
-    make: Callable[[np.ndarray, int], Any]
+    make: Callable[[np.ndarray, int, slice], Any]
     n_train: int
     n: int
     batch_size: int
     seed: int
 
     def __call__(self, step: int):
-        return self.make(sample_indices(self.n_train, self.batch_size, self.seed, step), step)
+        return self.rows(step, slice(None))
+
+    def rows(self, step: int, rows: slice):
+        return self.make(sample_indices(self.n_train, self.batch_size, self.seed, step), step, rows)
 
     def validation(self) -> list | None:
         val = np.arange(self.n_train, self.n)
         if not len(val):
             return None
         count = -(-len(val) // self.batch_size)
-        return [self.make(val[np.arange(k * self.batch_size, (k + 1) * self.batch_size) % len(val)], k)
+        return [self.make(val[np.arange(k * self.batch_size, (k + 1) * self.batch_size) % len(val)], k, slice(None))
                 for k in range(count)]
 
 
@@ -171,11 +179,13 @@ def paired_batch(ds, spec: StageSpec, pairs: np.ndarray, n_train: int, codes: np
     in the step (exact resume). The neighbour comes as its motion (``retrieved``) or, given
     ``codes`` (N, D), every demo's precomputed latent (a frozen autoencoder's), as its latent
     (``code_r``, with the sampled demos' own as ``code``): a latent-space loss reads no neighbour
-    motion. ``extra`` entries are added to every batch unchanged."""
+    motion. ``extra`` entries, per-sample arrays of the batch's length, are added to every batch
+    (their ``rows`` in a part of one)."""
 
-    def batch(idx, step):
-        j = neighbour_choice(pairs, idx, spec.seed, step)
-        out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], **extra}
+    def batch(idx, step, rows):
+        j = neighbour_choice(pairs, idx, spec.seed, step)[rows]
+        idx = idx[rows]
+        out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], **{k: v[rows] for k, v in extra.items()}}
         if codes is None:
             out["retrieved"] = ds.motion[j]
         else:

@@ -44,7 +44,8 @@ def train(task: str, data_root: str | Path, run_dir: str | Path, configs: dict, 
     if "deterministic" in stages:
         spec, ds = base.network_stage_spec(run.train_cfg), run.ds
 
-        def batch(idx, step):
+        def batch(idx, step, rows):
+            idx = idx[rows]
             return {"image": ds.rgbd[idx], "motion": ds.motion[idx]}
 
         run.fit("deterministic", spec, init_model(model, jax.random.key(run.train_cfg.seed)),

@@ -4,6 +4,7 @@ sections 4-6), in two resumable stages of one run folder (``vae/``, ``read/``)."
 from __future__ import annotations
 
 import dataclasses
+import functools
 from pathlib import Path
 
 import jax
@@ -21,6 +22,17 @@ from readjax.models.kinematic_vae import make_autoencoder
 from readjax.models.vae import weighted_motion_loss
 
 STAGES = ("vae", "read")
+
+
+@functools.cache
+def task_chain(task: str):
+    """The arm's kinematic chain of ``task`` (what the autoencoder needs) from its MuJoCo model alone:
+    training builds no simulator (a task's MJX environment is placed on ``jax.devices()[0]``, another
+    process's device in a multi-process training)."""
+    from readjax.sim.kinematics import chain_from_model
+    from readjax.sim.scene import load_model
+
+    return chain_from_model(load_model(tasks.task_class(task).xml))
 
 
 def build_modules(configs: dict, chain, camera):
@@ -105,7 +117,8 @@ def fit_autoencoder(run_dir: Path, ds, ae, key, train_cfg, cfg_dict: dict, progr
     """The ``vae/`` stage (shared by READ and READ-L, and by runs differing only in K, L, T)."""
     vspec = base.autoencoder_stage_spec(train_cfg)
 
-    def vae_batch(idx, step):
+    def vae_batch(idx, step, rows):
+        idx = idx[rows]
         return {"motion": ds.motion[idx], "joints": ds.joints[idx]}
 
     batches = base.Batches(vae_batch, base.train_size(len(ds), train_cfg), len(ds), vspec.batch_size, vspec.seed)
@@ -146,7 +159,7 @@ def prepare_autoencoder(run: common.PreparedRun, stages, progress: bool, stop_at
     another run folder whose finished autoencoder stage this run starts from (same stage config and
     dataset, else refused: ``training.copy_finished_stage``). Returns (autoencoder, denoiser,
     autoencoder key, denoiser key)."""
-    ae, den = (build or build_modules)(run.configs, tasks.make(run.task).chain, run.ds.camera)
+    ae, den = (build or build_modules)(run.configs, task_chain(run.task), run.ds.camera)
     k_ae, k_den = jax.random.split(jax.random.key(run.train_cfg.seed))
     if vae_from is not None:
         training.copy_finished_stage(vae_from, run.run_dir, "vae", vae_stage_config(run.cfg_dict), run.ds.fingerprint)

@@ -81,10 +81,10 @@ def train_vpsde(method: str, task, data_root, run_dir, configs: dict, preset: st
         pairs = run.pairs() if cond else None
         norm = common.batch_stats(stats, spec.batch_size)
 
-        def batch(idx, step):
-            out = {"image": ds.rgbd[idx], "motion": ds.motion[idx], "norm": norm}
+        def batch(idx, step, rows):
+            out = {"image": ds.rgbd[idx[rows]], "motion": ds.motion[idx[rows]], "norm": norm[rows]}
             if cond:
-                out["retrieved"] = ds.motion[base.neighbour_choice(pairs, idx, spec.seed, step)]
+                out["retrieved"] = ds.motion[base.neighbour_choice(pairs, idx, spec.seed, step)[rows]]
             return out
 
         run.fit(method, spec, init_denoiser(den, run.image_size, jax.random.key(train_cfg.seed + 1)),
