@@ -62,7 +62,8 @@ def table(rows: list[dict]) -> str:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax import ae_eval, provenance, tasks
+    from readjax import provenance, tasks
+    from readjax.lab import ae_eval
     from readjax.data.store import load_dataset
     from readjax.methods import base
 

@@ -26,7 +26,7 @@ from experiments import _cli
 
 
 def parser() -> argparse.ArgumentParser:
-    from readjax.goal_shift import DEFAULT_RANKS
+    from readjax.lab.goal_shift import DEFAULT_RANKS
 
     p = argparse.ArgumentParser(prog="python -m experiments.goal_shift", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
@@ -48,7 +48,8 @@ def main(argv=None) -> None:
     args = parser().parse_args(argv)
     if not args.shift_cm > 0:
         raise ValueError(f"--shift-cm must be > 0, got {args.shift_cm}")
-    from readjax import goal_shift, tasks
+    from readjax import tasks
+    from readjax.lab import goal_shift
     from readjax.data import store
     from readjax.methods.base import read_run
     from readjax.planner import Planner

@@ -2,7 +2,7 @@
 
 For each task (in the paper's order), each step runs only if its output is missing:
   1. generate the test split (--test-episodes) and replay its ground truth through the evaluation
-     path (experiments.verify): anything below 100 % stops the grid -- its numbers would not count;
+     path (experiments.verify): anything below 100 % stops that task -- its numbers would not count;
   2. generate the training split (--train-episodes, the paper's 1000 by default);
   3. train each method (--preset), then evaluate it on the test split: READ at each --read-N,
      the others once;
@@ -16,21 +16,31 @@ For each task (in the paper's order), each step runs only if its output is missi
      perturbed images).
 --variant trains a method with its own config overrides in its own run folder (READ-O's two samplers,
 READ with the kinematics-aware autoencoder): a row of its own.
-Progress and an ETA cover the whole grid. A kill loses at most the step in progress; running the
-same command again skips what is done. An evaluation counts as done when RESULTS holds it on a test
-split whose replay is on record (RESULTS/<task>/verify/), so a fresh machine with only the committed
-results/ regenerates, verifies and trains only what an unfinished evaluation needs. --shard i/n runs every n-th task from the i-th, so n
-processes (or machines sharing the folders) split the grid; --jobs J runs J steps at once in one process,
-each as soon as what it needs is finished (a GPU holds a dozen), its output in RUNS/pipeline_logs/, and every
-10 minutes a line saying what runs and how far it has got (a training: its stages' steps).
+The steps run on Ray (docs/cluster.md): with no --ray-address (nor RAY_ADDRESS) an embedded Ray on this
+machine runs as many at once as it has cores; --ray-address joins a cluster started with `ray start`,
+where each step is a task on whichever node has what it asks (--resources: a CPU each, a share of a GPU
+for a training where the cluster has GPUs, memory), started as soon as the steps it needs have
+finished (a task's data and replay before its trainings, a training before its evaluations). The same
+command gives the same results/ either way. On a cluster every node must see --data, --runs and
+--results (and the folder the command is started from) at the same paths: a shared folder (NFS, a
+mounted bucket). Each step's output goes to RUNS/pipeline_logs/<task>/<step>.log (which node ran it
+heads each run), a line per finished step says where it ran with the elapsed time and an ETA, and every
+10 minutes a line says what is under way and how far it has got (a training: its stages' steps). A
+step whose worker or node is lost is run again by Ray elsewhere (resuming what it left); a step that
+fails fails the steps that need it, the others run on, and the grid ends naming every failure.
+A kill loses at most the steps in progress; running the same command again skips what is done. An
+evaluation counts as done when RESULTS holds it on a test split whose replay is on record
+(RESULTS/<task>/verify/), so a fresh machine with only the committed results/ regenerates, verifies and
+trains only what an unfinished evaluation needs.
 
 A run name whose evaluations in RESULTS were trained with another recipe (preset, --set, --variant)
 is refused before any work: name the grid's runs apart with --run-name.
 
 examples:
   python -m experiments.pipeline --tasks all --run-name read=read_v3_5k --run-name deterministic=deterministic_v3_5k
-  python -m experiments.pipeline --tasks all --shard 0/2 ...    # and --shard 1/2 in a second shell
-  python -m experiments.pipeline --tasks RT PB PC CB --jobs 12 ...   # a GPU: a dozen steps at once
+  cd /shared/readjax && python -m experiments.pipeline --tasks all --ray-address 10.0.0.1:6379   # a cluster
+      # (`ray start --head` on 10.0.0.1, `ray start --address 10.0.0.1:6379` on each node; /shared on every node)
+  python -m experiments.pipeline --tasks RT PB --resources train:num_gpus=0.25,memory=6   # 4 trainings a GPU
   python -m experiments.pipeline --tasks RT --methods read --read-N 0 10 100 --results my_results --dry-run
   python -m experiments.pipeline --tasks RT PB PC CB --methods read deterministic vpsde vpsde_cg read_l \
       --variant read_o_cd read_o read_o.sampler=cd --variant read_o_em read_o \
@@ -41,7 +51,6 @@ examples:
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 from pathlib import Path
@@ -50,8 +59,9 @@ from experiments import _cli
 
 
 def parser() -> argparse.ArgumentParser:
-    from readjax import methods, pipeline
+    from readjax import methods
     from readjax.config import preset_names
+    from readjax.lab.pipeline_config import PROTOCOL_EVALUATIONS, PipelineConfig
 
     p = argparse.ArgumentParser(prog="python -m experiments.pipeline", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
@@ -82,25 +92,20 @@ def parser() -> argparse.ArgumentParser:
                    help="where READ at its largest --read-N succeeds on fewer than this %% of the test episodes, "
                         "evaluate it again at each --read-N from the oracle's start (the episode's own "
                         "demonstration): retrieval or refinement, which one limits the task (0: never)")
-    p.add_argument("--protocols", nargs="+", default=[], choices=sorted(pipeline.PROTOCOL_EVALUATIONS),
+    p.add_argument("--protocols", nargs="+", default=[], choices=sorted(PROTOCOL_EVALUATIONS),
                    metavar="PROTOCOL",
                    help="READ's evaluations beyond the main table: "
-                        + "; ".join(f"{k}: {v}" for k, v in pipeline.PROTOCOL_EVALUATIONS.items()))
-    p.add_argument("--noise", type=float, default=pipeline.PipelineConfig.noise,
+                        + "; ".join(f"{k}: {v}" for k, v in PROTOCOL_EVALUATIONS.items()))
+    p.add_argument("--noise", type=float, default=PipelineConfig.noise,
                    help="the perturbed protocol's Gaussian noise std on the test RGB in [0, 1] (the paper does not "
                         "state its level)")
-    p.add_argument("--brightness", type=float, default=pipeline.PipelineConfig.brightness,
+    p.add_argument("--brightness", type=float, default=PipelineConfig.brightness,
                    help="the perturbed protocol's brightness factor on the test RGB")
-    p.add_argument("--shard", default="0/1", help="i/n: run tasks i, i+n, i+2n, ... of the list")
-    p.add_argument("--jobs", type=_cli.positive_int, default=1,
-                   help="steps run at once, each as soon as what it needs is finished (a task's data and "
-                        "replay before its trainings, a training before its evaluations): 1 runs them in "
-                        "order on this terminal; more write each step's output to RUNS/pipeline_logs/"
-                        "<task>/<step>.log. A GPU holds a dozen (JAX's preallocation is turned off for them)")
+    _cli.add_ray_arguments(p, "step")
     p.add_argument("--dry-run", action="store_true",
                    help="list the steps, each done / skip (not needed) / todo, a todo step with its expected "
                         "time (from the timing records under --results) and a training under way with how far "
-                        "it has got, then the work left in all and at --jobs; run nothing")
+                        "it has got, then the work left in all; run nothing (and start no Ray)")
     return p
 
 
@@ -108,12 +113,12 @@ def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
-def dry_run(steps, prior, jobs: int, results) -> None:
+def dry_run(steps, prior, results) -> None:
     """List the steps, each done / skip / todo; a todo step with its expected time (a training under
     way: its own pace to its cap; else the timing records under ``results``: the same step on another
     task or run, else the mean of its kind) and, for a training under way, how far it has got; then
-    the work left in all and at ``jobs``."""
-    from readjax import scheduler
+    the work left in all."""
+    from readjax.lab import timing
 
     total, priced, todo = 0.0, True, 0
     for s in steps:
@@ -121,10 +126,10 @@ def dry_run(steps, prior, jobs: int, results) -> None:
         line = f"{status}  {s.task}: {s.label}"
         if status == "todo":
             todo += 1
-            cost = scheduler.step_cost(s, {}, {}, prior)
+            cost = timing.step_cost(s, {}, {}, prior)
             priced &= cost is not None
             total += cost or 0.0
-            line = f"{status}  ~{scheduler.hms(cost) if cost is not None else '?'}  {s.task}: {s.label}"
+            line = f"{status}  ~{timing.hms(cost) if cost is not None else '?'}  {s.task}: {s.label}"
             so_far = s.progress() if s.progress is not None else ""
             if so_far:
                 line += f"  (so far: {so_far})"
@@ -132,8 +137,8 @@ def dry_run(steps, prior, jobs: int, results) -> None:
     print("(skip: not needed here: everything that would use its output is finished, or its condition "
           "does not hold)")
     if todo and priced:
-        print(f"to run: {todo} steps, about {scheduler.hms(total)} of work ({scheduler.hms(total / jobs)} at "
-              f"--jobs {jobs}), priced from the timing records under {results}: the same step on another "
+        print(f"to run: {todo} steps, about {timing.hms(total)} of work (divide by the steps a machine or "
+              f"cluster runs at once), priced from the timing records under {results}: the same step on another "
               f"task, else the mean of its kind (rough for a training of a recipe not timed yet); a training "
               f"under way by its own pace to its step cap (an upper bound under the convergence rule)")
     elif todo:
@@ -142,13 +147,12 @@ def dry_run(steps, prior, jobs: int, results) -> None:
 
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
-    from readjax import pipeline, scheduler, tasks
+    from readjax import tasks
+    from readjax.lab import pipeline, ray_grid, timing
+    from readjax.lab.pipeline_config import PipelineConfig
+    from readjax.lab.steps import PipelineError
 
-    try:
-        shard = tuple(int(x) for x in args.shard.split("/"))
-        assert len(shard) == 2
-    except (ValueError, AssertionError):
-        raise ValueError(f"--shard must look like i/n (e.g. 0/2), got {args.shard!r}") from None
+    resources = ray_grid.parse_resources(args.resources)
     if any(n < 0 for n in args.read_N):
         raise ValueError(f"--read-N values must be >= 0, got {args.read_N}")
     names = tasks.names() if args.tasks == ["all"] else tuple(args.tasks)
@@ -158,31 +162,29 @@ def main(argv=None) -> int:
     if any(len(v) < 2 for v in args.variant):
         raise ValueError(f"--variant takes LABEL METHOD [KEY=VALUE ...], got {[' '.join(v) for v in args.variant]}")
     variants = tuple((v[0], v[1], tuple(v[2:])) for v in args.variant)
-    cfg = pipeline.PipelineConfig(
+    cfg = PipelineConfig(
         tasks=names, methods=tuple(args.methods) + tuple(label for label, _, _ in variants), preset=args.preset,
         data=args.data, runs=args.runs,
         results=args.results, train_episodes=args.train_episodes, test_episodes=args.test_episodes,
         image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
-        overrides=tuple(args.set), shard=shard, run_names=run_names,
+        overrides=tuple(args.set), run_names=run_names,
         media_episodes=args.media_episodes, diagnose_below=args.diagnose_below, variants=variants,
         protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness).validate()
     try:
         steps = pipeline.plan_steps(cfg)
-    except scheduler.PipelineError as e:
+    except PipelineError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     if args.dry_run:
-        dry_run(steps, scheduler.prior_costs(cfg.results), args.jobs, cfg.results)
+        dry_run(steps, timing.prior_costs(cfg.results), cfg.results)
         return 0
     try:
-        if args.jobs > 1:  # each process would otherwise claim 75 % of a GPU's memory
-            os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
-        # `kill` as Ctrl-C: the running steps are stopped with the grid, not left running unwatched
+        # `kill` as Ctrl-C: the steps under way are stopped with the grid, not left running unwatched
         signal.signal(signal.SIGTERM, _interrupt)
-        summary = scheduler.run_steps(steps, log=lambda m: print(m, flush=True),
-                                      prior=scheduler.prior_costs(cfg.results), jobs=args.jobs,
-                                      log_dir=Path(cfg.runs) / "pipeline_logs" if args.jobs > 1 else None)
-    except scheduler.PipelineError as e:
+        summary = ray_grid.run_on_ray(steps, log=lambda m: print(m, flush=True), prior=timing.prior_costs(cfg.results),
+                                      address=args.ray_address, log_dir=Path(cfg.runs) / "pipeline_logs",
+                                      resources=resources)
+    except PipelineError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     print(f"pipeline: ran {summary['ran']} steps, skipped {summary['skipped']}; seconds by kind "

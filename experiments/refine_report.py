@@ -49,7 +49,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--rank", type=_cli.positive_int, nargs="+", default=[1],
                    help="with --retrieval cheat: start from the oracle's RANK-th nearest demonstration (1: the "
                         "best start, Tables 4-5; 500: a poor one, Table 8). Several ranks: each one's report, "
-                        "then the correction range (readjax.correction_range): every plan's end error against "
+                        "then the correction range (readjax.lab.correction_range): every plan's end error against "
                         "its start's, binned, beside the distances READ's training pairs span, with a plot")
     p.add_argument("--rounds", type=_cli.positive_int, default=None,
                    help="refinements of N steps in a row, each from the previous one's plan (default: the "
@@ -71,12 +71,12 @@ def main(argv=None) -> None:
     if (args.run is None) == (args.summary is None):
         raise ValueError("give either --run (diagnose a run) or --summary (tabulate saved reports), not both or neither")
     if args.summary:
-        from readjax import refine_report
+        from readjax.lab import refine_report
         print(refine_report.format_checks_table([load_report(f) for f in args.summary]))
         return
     if any(n < 0 for n in args.N):
         raise ValueError(f"--N values must be >= 0, got {args.N}")
-    from readjax import refine_report
+    from readjax.lab import refine_report
     from readjax.data import store
     from readjax.methods.base import read_run, train_size
     from readjax.planner import Planner
@@ -113,7 +113,7 @@ def main(argv=None) -> None:
         out.write_text(json.dumps(result, indent=2))
         print(f"results in {out}")
         return
-    from readjax import correction_range
+    from readjax.lab import correction_range
 
     train = planner.model.configs["train"]  # the pairs it trained on: among the demos not held out
     pairs = correction_range.pair_distances(planner.camera, planner.database.motion, train.K,

@@ -12,6 +12,7 @@ examples:
   python -m experiments.report --runs results/ --compare 'read: retrieval only (N=0)' deterministic
   python -m experiments.report --runs results/ --main read_v3_5k deterministic_v3_5k   # the paper's main table
   python -m experiments.report --runs results/ --claims read=read_v3_5k deterministic=deterministic_v3_5k
+  python -m experiments.report --pages    # rebuild every generated page (docs/results.md, baselines.md, ...)
 """
 
 from __future__ import annotations
@@ -48,6 +49,9 @@ def parser() -> argparse.ArgumentParser:
                         "tests, naming the run of each role: read, deterministic, vpsde, vpsde_cg, read_o, read_l, "
                         "read_o_em (READ-O trained with the other sampler, EM: Table 6) "
                         "(a role not named: the run of its own name), e.g. read=read_v3_5k")
+    p.add_argument("--pages", action="store_true",
+                   help="rebuild every generated page of the repository (docs/results.md, docs/baselines.md, "
+                        "docs/difficulty.md, results/README.md) from results/, as committed; other options ignored")
     p.add_argument("--main-preset", default="cpu", choices=preset_names(),
                    help="READ's cells in --main and --claims are evaluations with this preset's refinement "
                         "(sde.update, sde.rounds)")
@@ -56,10 +60,16 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax import main_table
-    from readjax.report import write_report
+    if args.pages:
+        from readjax.lab import pages
 
-    from readjax import claims
+        for page in pages.regenerate("."):
+            print(f"wrote {page}")
+        return
+    from readjax.lab import main_table
+    from readjax.lab.report import write_report
+
+    from readjax.lab import claims
 
     if args.claims is not None and any("=" not in c for c in args.claims):
         raise ValueError(f"--claims takes ROLE=RUN pairs, got {args.claims}")

@@ -10,9 +10,15 @@ examples:
   python -m experiments.sweep --task reach_target --grid N=0,1,10,100 L=0.1,0.5,1.0
   python -m experiments.sweep --task PB --grid N=1,10,100 --episodes 50
   python -m experiments.sweep --task RT --grid N=0,1,10,100 --results results/   # committed, with paired tests vs A
-  # Table 7: each key alone from A (A not retrained), two trainings at once
+  # Table 7: each key alone from A (A not retrained), the trainings on a Ray cluster
   python -m experiments.sweep --task PB --grid N=0,1,10,100 K=1,3,10 L=0.1,0.5,1.0 T=0.1,2.0,20.0 --vary one \\
-      --reference-run runs/push_button/read --results results/ --jobs 2
+      --reference-run runs/push_button/read --results results/ --ray-address 10.0.0.1:6379
+
+The cells' trainings run on Ray (docs/cluster.md), each an `experiments.train` process (its output in
+OUT/<task>/<name>/logs/), side by side as the machines allow: with no --ray-address (nor RAY_ADDRESS) an
+embedded Ray on this machine, as many at once as it has cores; with one, the cluster's nodes (every node
+must see --data and --out at the same paths, as this process does). This process evaluates each cell,
+in the sweep's order, as soon as its training has finished, and writes the table after each cell.
 
 A sweep is resumable across machines: with --results, a cell whose run is gone (a fresh machine) but
 whose evaluations are committed there, on the same test episodes, is kept as committed; the others
@@ -56,9 +62,7 @@ def parser() -> argparse.ArgumentParser:
                    help="a finished run trained as setting A (same --preset, --set and data; checked): A's "
                         "cell evaluates it instead of training again, and takes the run's own evaluations of "
                         "the same episodes (the pipeline's, in RUN/eval/) where it has them")
-    p.add_argument("--jobs", type=_cli.positive_int, default=1,
-                   help="trainings at once: each cell's training its own `experiments.train` process (logs in "
-                        "OUT/<task>/<name>/logs/), the evaluations after them; 2 on 2 cores, a dozen on a GPU")
+    _cli.add_ray_arguments(p, "cell's training (KIND train)")
     p.add_argument("--other-split-versions", action="store_true",
                    help="with --results: also keep committed cells measured on the same test seeds but another "
                         "version of the split (generated on another CPU, whose float rounding moves the expert's "
@@ -70,12 +74,15 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
-    from readjax.sweep import SweepConfig, format_table7, parse_grid, run_sweep
+    from readjax.lab.sweep import run_sweep
+    from readjax.lab.sweep_grid import SweepConfig, parse_grid
+    from readjax.lab.sweep_table import format_table7
 
     cfg = SweepConfig(task=args.task, grid=parse_grid(args.grid), model=args.model, preset=args.preset,
                       data=args.data, out=args.out, name=args.name, episodes=args.episodes,
                       sets=tuple(args.set), batch_size=args.batch_size, results=args.results,
-                      reference_run=args.reference_run, vary=args.vary, jobs=args.jobs,
+                      reference_run=args.reference_run, vary=args.vary, ray_address=args.ray_address,
+                      resources=tuple(args.resources),
                       other_split_versions=args.other_split_versions)
     result = run_sweep(cfg, progress=not args.quiet)
     print(format_table7(result))

@@ -44,7 +44,8 @@ def main(argv=None) -> int:
         raise ValueError(f"--shift-cm and --turn-deg are magnitudes >= 0, got {args.shift_cm} and {args.turn_deg}")
     from tqdm import tqdm
 
-    from readjax import provenance, tasks, tolerance
+    from readjax import provenance, tasks
+    from readjax.lab import tolerance
     from readjax.data import store
     from readjax.data.guard import check_scene_images
 

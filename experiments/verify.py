@@ -40,7 +40,8 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     if not 0.0 <= args.min <= 100.0:
         raise ValueError(f"--min is a percentage in [0, 100], got {args.min}")
-    from readjax import tasks, verification
+    from readjax import tasks
+    from readjax.lab import verification
     from readjax.data import store
     from readjax.evaluation import replay_ground_truth
 

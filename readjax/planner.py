@@ -91,6 +91,8 @@ class Planner:
             raise ValueError(f"rgbd must be batched: shape (B, {s}, {s}, 4), got {x.shape} (use rgbd[None])")
         if x.ndim != 4 or x.shape[1:] != (s, s, 4):
             raise ValueError(f"rgbd must have shape (B, {s}, {s}, 4) (RGB + normalised depth), got {x.shape}")
+        if x.shape[0] == 0:
+            raise ValueError(f"rgbd holds no images (shape {x.shape}): plan needs at least one first frame")
         if not np.issubdtype(x.dtype, np.floating):
             raise ValueError(f"rgbd must be float in [0, 1], got dtype {x.dtype} (divide uint8 RGB by 255)")
         if not np.all(np.isfinite(x)):
@@ -130,6 +132,7 @@ class Planner:
         all (:meth:`refine`). 1 is the paper's single refinement; None the run's default
         (:attr:`default_rounds`)."""
         n = check_n_steps(self.n_steps if N is None else N, name="N")
+        check_key(key)
         if rounds is None:
             rounds = self.default_rounds if n > 0 else 1
         for name, v in (("candidates", candidates), ("rounds", rounds)):
@@ -184,6 +187,20 @@ class Planner:
         q, skipped = self._ik(jnp.asarray(pos), jnp.asarray(rot))
         return Plan(motion=m, retrieved=m_r, retrieved_index=np.asarray(idx), positions=pos, rotations=rot,
                     grip=grip, joints=np.asarray(q), reachable=~np.asarray(skipped))
+
+
+def check_key(key) -> None:
+    """A clear error for anything but one JAX PRNG key (a typed ``jax.random.key(seed)`` or a legacy
+    ``jax.random.PRNGKey(seed)``): the refinement draws its noise from it."""
+    typed = hasattr(key, "dtype") and jnp.issubdtype(key.dtype, jax.dtypes.prng_key)
+    legacy = (isinstance(key, (jax.Array, np.ndarray)) and not typed and key.dtype == np.uint32
+              and key.shape in ((2,), (4,)))  # threefry or rbg key data
+    if typed and key.shape != ():
+        raise ValueError(f"key must be one PRNG key for the whole batch, got a batch of keys of shape {key.shape}")
+    if not (typed or legacy):
+        raise ValueError(f"key must be a JAX PRNG key, e.g. key=jax.random.key(0) (the refinement draws its "
+                         f"noise from it), got {type(key).__name__}"
+                         + (f" with dtype {key.dtype}" if hasattr(key, "dtype") else ""))
 
 
 def fixed_point_residual(model, camera, features, motion, key) -> jax.Array:

@@ -5,7 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from readjax import ae_eval
+from readjax.lab import ae_eval
 from readjax import motion as mo
 from readjax.sim import kinematics as kin
 

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from experiments.bench import _estimate_call_s
+from readjax.lab.bench_planner import _estimate_call_s
 
 
 def test_estimate_separates_fixed_cost_from_per_step_cost():
@@ -17,7 +17,7 @@ def test_estimate_separates_fixed_cost_from_per_step_cost():
 
 
 def test_regression_check_flags_only_what_got_twice_as_slow():
-    from experiments.bench import slower_than
+    from readjax.lab.bench_compare import slower_than
 
     old = {"cells": [{"preset": "cpu", "batch": 1, "N": 1, "ms_per_call": 100.0, "ms_per_plan": 100.0},
                      {"preset": "cpu", "batch": 1, "N": 100, "ms_per_call": 1000.0},
@@ -38,7 +38,7 @@ def test_regression_check_flags_only_what_got_twice_as_slow():
 
 
 def test_original_ratios_pair_cells_by_batch_n_and_threads():
-    from experiments.bench import original_ratios
+    from readjax.lab.bench_compare import original_ratios
 
     cells = [{"preset": "paper", "batch": 1, "N": 1, "ms_per_call": 500.0},
              {"preset": "paper", "batch": 1, "N": 100, "ms_per_call": 2000.0},
@@ -55,7 +55,8 @@ def test_original_ratios_pair_cells_by_batch_n_and_threads():
 def test_the_originals_harness_is_asked_for_this_benchmarks_cells_and_variants(tmp_path):
     """--vs-original times the original at the benchmark's own batches, N, database and cap, and only
     at the variants asked for (as released, at batch 64 and N = 100, runs about an hour on 2 cores)."""
-    from experiments.bench import original_command, parser
+    from experiments.bench import parser
+    from readjax.lab.bench_compare import original_command
 
     argv = ["planner", "--presets", "paper", "--batch-sizes", "64", "--N", "100", "1", "--database", "32",
             "--max-seconds", "900", "--vs-original", str(tmp_path)]

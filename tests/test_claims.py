@@ -9,7 +9,7 @@ import pytest
 
 from experiments import _cli
 from experiments import report as report_cli
-from readjax import claims
+from readjax.lab import claims
 from readjax.config import preset
 
 SDE = preset("cpu")["sde"]

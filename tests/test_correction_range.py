@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from readjax import correction_range
+from readjax.lab import correction_range
 from readjax import motion as motion_lib
 from readjax.sim.camera import CameraParams
 

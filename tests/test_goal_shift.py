@@ -7,7 +7,8 @@ import jax
 import numpy as np
 import pytest
 
-from readjax import goal_shift, tasks
+from readjax import tasks
+from readjax.lab import goal_shift
 
 
 @pytest.mark.parametrize("task", ["reach_target", "push_button"])

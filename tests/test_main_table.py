@@ -7,7 +7,8 @@ import pytest
 
 from experiments import _cli
 from experiments import report as report_cli
-from readjax import paper, tasks, verification
+from readjax import tasks
+from readjax.lab import paper, verification
 from readjax.config import preset
 
 

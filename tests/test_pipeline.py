@@ -16,7 +16,8 @@ import readjax
 from experiments import _cli
 from experiments import evaluate as evaluate_cli
 from experiments import train as train_cli
-from readjax import provenance, refine_report, retrieval
+from readjax import provenance, retrieval
+from readjax.lab import refine_report
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.planner import Planner
@@ -204,7 +205,7 @@ def test_goal_shift_on_the_trained_run(run, tmp_path, capsys):
     rounding), plans from the same oracle start on both images, and finds the goal's move in the
     image features near the goal and not far from it."""
     from experiments import goal_shift as goal_shift_cli
-    from readjax import goal_shift
+    from readjax.lab import goal_shift
 
     data, run_dir = run
     out = tmp_path / "shift.json"
@@ -236,7 +237,7 @@ def test_training_inputs_decode_the_sde_marginal(run):
     zR + a(1) (z0 - zR)."""
     import jax.numpy as jnp
 
-    from readjax import goal_shift
+    from readjax.lab import goal_shift
     from readjax.diffusion import irsde
     from readjax.diffusion import latent as latent_lib
 
@@ -357,10 +358,27 @@ def test_missing_run_is_a_clear_error(tmp_path, capsys):
     assert "not a training run" in capsys.readouterr().err
 
 
+def _train_here(argv):
+    """An ``experiments.train`` step's command run in this process (the tests' stand-in for Ray)."""
+    import subprocess
+
+    assert argv[1:3] == ["-m", "experiments.train"]
+    return subprocess.CompletedProcess(argv, _cli.run(train_cli.main, argv[3:]))
+
+
+def _here(steps, log, on_finished, **ray_options):
+    """A sweep's training steps run in order in this process, as ``ray_grid.run_on_ray`` is called."""
+    from readjax.lab.steps import run_in_order
+
+    return run_in_order(steps, log=log, runner=_train_here, on_finished=on_finished)
+
+
 def test_sweep_resumes_and_reports(run, tmp_path, monkeypatch):
     from experiments import report as report_cli
     from experiments import sweep as sweep_cli
+    from readjax.lab import ray_grid
 
+    monkeypatch.setattr(ray_grid, "run_on_ray", _here)  # no Ray outside a private network namespace
     data, _ = run
     argv = ["--task", "RT", "--grid", "N=0,1", "L=0.3,0.5", "--episodes", "2", "--batch-size", "2",
             "--data", str(data), "--out", str(tmp_path), "--quiet",
@@ -397,7 +415,9 @@ def test_sweep_resumes_and_reports(run, tmp_path, monkeypatch):
                                                                           limit=2).fingerprint}
     assert len({c["vae_trace"] for c in cells}) == 1 and len(cells[0]["vae_trace"]) == 16
     # a fresh machine (the sweep's runs gone): the committed cells are kept, nothing trains or evaluates
-    from readjax import methods, sweep as sweep_lib
+    from readjax import methods
+    from readjax.lab import sweep as sweep_lib
+    from readjax.lab import sweep_grid
     shutil.rmtree(sweep_dir)
     monkeypatch.setattr(sweep_lib.evaluation, "evaluate", lambda *a, **k: pytest.fail("evaluated again"))
     monkeypatch.setattr(methods.module("read"), "train", lambda *a, **k: pytest.fail("trained again"))
@@ -410,7 +430,7 @@ def test_sweep_resumes_and_reports(run, tmp_path, monkeypatch):
     committed_json.write_text(json.dumps(moved))
     shutil.rmtree(sweep_dir)
     with pytest.raises(pytest.fail.Exception, match="trained again"):
-        sweep_lib.run_sweep(sweep_lib.SweepConfig(task="RT", grid={"N": [0, 1], "L": [0.3, 0.5]}, data=str(data),
+        sweep_lib.run_sweep(sweep_grid.SweepConfig(task="RT", grid={"N": [0, 1], "L": [0.3, 0.5]}, data=str(data),
                                                   out=str(tmp_path), episodes=2, batch_size=2, sets=tuple(TINY),
                                                   results=str(tmp_path / "committed")), progress=False)
     # ... unless asked to keep cells on the same seeds from another version of the split (another CPU's
@@ -424,15 +444,16 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
     """--vary one --reference-run: setting A is the finished run (evaluated at each N, not trained
     again), each other value is trained alone from A, starting from A's autoencoder; the table is
     written after each setting, so a sweep cut short keeps its finished cells."""
-    from readjax import sweep as sweep_lib
+    from readjax.lab import sweep as sweep_lib
+    from readjax.lab import sweep_grid, sweep_table
 
     data, trained = run
-    written, write = [], sweep_lib.write_sweep
-    monkeypatch.setattr(sweep_lib, "write_sweep",
+    written, write = [], sweep_table.write_sweep
+    monkeypatch.setattr(sweep_table, "write_sweep",
                         lambda sw, folder: (written.append(len(sw["cells"])), write(sw, folder)))
-    cfg = sweep_lib.SweepConfig(task="RT", grid={"N": [0, 1], "T": [0.5, 2.0]}, data=str(data), out=str(tmp_path),
+    cfg = sweep_grid.SweepConfig(task="RT", grid={"N": [0, 1], "T": [0.5, 2.0]}, data=str(data), out=str(tmp_path),
                                 episodes=2, batch_size=2, sets=tuple(TINY), reference_run=str(trained), vary="one")
-    out = sweep_lib.run_sweep(cfg, progress=False)
+    out = sweep_lib.run_sweep(cfg, progress=False, execute=_here)
     cells = [(c["N"], c["T"], c["run"]) for c in out["cells"]]
     sweep_dir = tmp_path / "reach_target" / "sweep"
     assert cells == [(0, 2.0, str(trained)), (1, 2.0, str(trained)), (100, 2.0, str(trained)),
@@ -441,12 +462,12 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
     assert not (trained / "eval" / "sweep_N1.json").exists()  # the reference run's folder is left as it was
     assert json.loads((sweep_dir / "T0.5" / "vae" / "stage.json").read_text())["dataset_fingerprint"] == \
         json.loads((trained / "vae" / "stage.json").read_text())["dataset_fingerprint"]
-    assert "| A (default) | 100 | 50 | 0.5 | 2 |" in sweep_lib.format_table7(out)
+    assert "| A (default) | 100 | 50 | 0.5 | 2 |" in sweep_table.format_table7(out)
     assert written == [3, 4]  # after A's three cells, then after T = 0.5's
     # a run trained otherwise is refused before any work
     other = dataclasses.replace(cfg, sets=tuple(TINY) + ("sde.lam=0.3",), name="other")
     with pytest.raises(ValueError, match="sde.lam"):
-        sweep_lib.run_sweep(other, progress=False)
+        sweep_lib.run_sweep(other, progress=False, execute=_here)
     # A's cells take the reference run's own evaluations of the same episodes (the pipeline's) instead
     # of running them again: marked outcomes come back, and nothing is evaluated
     ref = tmp_path / "ref"
@@ -458,7 +479,7 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
                                                                   "success": [not x for x in cell["success"]]}))
     monkeypatch.setattr(sweep_lib.evaluation, "evaluate", lambda *a, **k: pytest.fail("evaluated again"))
     again = sweep_lib.run_sweep(dataclasses.replace(cfg, grid={"N": [1]}, reference_run=str(ref), name="again"),
-                                progress=False)
+                                progress=False, execute=_here)
     for c in again["cells"]:
         cell = json.loads((sweep_dir / "T2" / "eval" / f"sweep_N{c['N']}.json").read_text())
         assert c["outcomes"] == [int(not x) for x in cell["success"]]
@@ -467,37 +488,46 @@ def test_a_table7_sweep_evaluates_the_reference_run_instead_of_training_it(run, 
         assert reused["reused_from"] == str(ref / "eval" / f"spe_N{c['N']}.json")
 
 
-def test_a_sweep_trains_its_cells_side_by_side(run, tmp_path, monkeypatch):
-    """--jobs 2: each cell still to train is an `experiments.train` process with the cell's overrides,
-    started from the shared autoencoder (the reference run's, or else the first cell's, trained alone
-    first); then the cells are evaluated as one job would. End to end with a real process, and the
-    steps of a sweep without a reference run."""
-    from readjax import scheduler, sweep as sweep_lib
+def test_a_sweeps_trainings_are_steps_and_each_cell_is_published_once_trained(run, tmp_path, monkeypatch):
+    """Each cell still to train is an `experiments.train` step with the cell's overrides, started from
+    the shared autoencoder (the reference run's, or else the first cell's, trained alone first, which
+    the others need); each cell is evaluated and published, in the sweep's order, once its training
+    has finished. End to end with the trainings run here; then the steps of a sweep without a
+    reference run."""
+    from readjax.lab import sweep as sweep_lib
+    from readjax.lab import sweep_grid, sweep_table
 
     data, trained = run
-    cfg = sweep_lib.SweepConfig(task="RT", grid={"T": [0.5]}, data=str(data), out=str(tmp_path), episodes=2,
-                                batch_size=2, sets=tuple(TINY), reference_run=str(trained), vary="one", jobs=2)
-    out = sweep_lib.run_sweep(cfg, progress=False)
+    handed, written = [], []
+    write = sweep_table.write_sweep
+    monkeypatch.setattr(sweep_table, "write_sweep", lambda sw, folder: (written.append(len(sw["cells"])), write(sw, folder)))
+
+    def execute(steps, log, on_finished):
+        handed.append([s.label for s in steps])
+        return _here(steps, log, lambda step: (written.append(step.label), on_finished(step)))
+
+    cfg = sweep_grid.SweepConfig(task="RT", grid={"T": [0.5]}, data=str(data), out=str(tmp_path), episodes=2,
+                                batch_size=2, sets=tuple(TINY), reference_run=str(trained), vary="one")
+    out = sweep_lib.run_sweep(cfg, progress=False, execute=execute)
     cell = tmp_path / "reach_target" / "sweep" / "T0.5"
+    assert handed == [["train T0.5"]] and written == ["train T0.5", 1, 2]  # A's cell, then T0.5's, once trained
     assert [(c["T"], c["run"]) for c in out["cells"]] == [(2.0, str(trained)), (0.5, "reach_target/sweep/T0.5")]
-    assert (cell / "read" / "stop.json").exists() and (tmp_path / "reach_target" / "sweep" / "logs").is_dir()
+    assert (cell / "read" / "stop.json").exists()
     assert json.loads((cell / "run.json").read_text())["configs"]["sde"]["theta1"] == 0.5
     assert out["cells"][0]["vae_trace"] == out["cells"][1]["vae_trace"]  # started from A's autoencoder
+    assert sweep_lib.run_sweep(cfg, progress=False, execute=lambda *a, **k: pytest.fail("trained again")) == out
 
-    captured = []
-    monkeypatch.setattr(scheduler, "run_steps", lambda steps, **kw: captured.append((steps, kw)))
     fresh = dataclasses.replace(cfg, grid={"T": [0.5, 2.0]}, reference_run=None, name="fresh")
     plan = [({"T": t}, f"T{t:g}", tmp_path / "reach_target" / "fresh" / f"T{t:g}", None,
              tmp_path / "reach_target" / "fresh" / f"T{t:g}", [100], None) for t in (2.0, 0.5)]
-    sweep_lib.train_side_by_side(fresh, "reach_target", plan, None, tmp_path / "reach_target" / "fresh", False)
-    (steps, kw), = captured
-    assert kw["jobs"] == 2 and [s.label for s in steps] == ["train T2 (autoencoder only)", "train T2", "train T0.5"]
+    steps = sweep_lib.training_steps(fresh, "reach_target", plan, None)
+    assert [s.label for s in steps] == ["train T2 (autoencoder only)", "train T2", "train T0.5"]
     first = str(tmp_path / "reach_target" / "fresh" / "T2")
     assert steps[0].argv[steps[0].argv.index("--stage") + 1] == "vae" and "--vae-from" not in steps[1].argv
     assert steps[2].argv[steps[2].argv.index("--vae-from") + 1] == first
-    assert all(s.needs == [steps[0]] for s in steps[1:])
+    assert all(s.needs == [steps[0]] for s in steps[1:]) and all(s.kind == "train" and s.resumes for s in steps)
     args = train_cli.parser().parse_args(steps[2].argv[3:])  # what experiments.train will train with
-    assert args.set == sweep_lib.cell_overrides(fresh, {"T": 0.5}) and args.name == "fresh/T0.5"
+    assert args.set == sweep_grid.cell_overrides(fresh, {"T": 0.5}) and args.name == "fresh/T0.5"
 
 
 def test_ae_report_on_the_trained_run(run, tmp_path, capsys):
@@ -548,7 +578,7 @@ def test_ae_report_execute_refuses_a_split_whose_ground_truth_fails(run, tmp_pat
 
 
 def test_the_autoencoder_row_executes_the_round_trip_not_the_demos(run):
-    from readjax import ae_eval
+    from readjax.lab import ae_eval
     from readjax.data import store
 
     data, run_dir = run

@@ -1,4 +1,5 @@
-"""The grid runner: step order, skipping what is done, stopping on a failed replay, shards, ETA."""
+"""The grid's plan, run in order with stand-ins for the commands: step order, skipping what is done,
+stopping on a failed replay, ETA; what the steps need, as Ray is handed them."""
 
 from __future__ import annotations
 
@@ -11,13 +12,15 @@ import pytest
 
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
-from readjax import config, cost_table, methods, pipeline, scheduler, stage_folder, verification
+from readjax import config, methods
+from readjax.lab import cost_table, pipeline, pipeline_config, ray_grid, timing, verification
+from readjax.lab.steps import PipelineError, Step, run_in_order
 
 
 def _cfg(tmp_path, **kw):
     base = dict(tasks=("RT", "PB"), data=str(tmp_path / "data"), runs=str(tmp_path / "runs"),
                 results=str(tmp_path / "results"), train_episodes=8, test_episodes=4)
-    return pipeline.PipelineConfig(**{**base, **kw}).validate()
+    return pipeline_config.PipelineConfig(**{**base, **kw}).validate()
 
 
 @pytest.fixture(autouse=True)
@@ -114,7 +117,7 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
                      ("reach_target", "train"), ("reach_target", "evaluate"), ("reach_target", "evaluate"),
                      ("reach_target", "media")]
     runner, lines = FakeRunner(), []
-    out = scheduler.run_steps(steps, log=lines.append, runner=runner)
+    out = run_in_order(steps, log=lines.append, runner=runner)
     assert len(steps) == 2 * (3 + 1 + 2 + 1 + 2 + 1 + 1)
     # READ scores 100 % at N = 100: its oracle-start evaluations (for a task below 80 %) are skipped
     assert out["ran"] == len(steps) - 4 and out["skipped"] == 4
@@ -137,11 +140,11 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
     assert argv[argv.index("--episodes") + 1] == "4" and argv[argv.index("--N") + 1] == "100"
     assert not (tmp_path / "results" / "push_button" / "read" / "eval" / "spe_N100_rollouts.mp4").exists()
     # every step's wall clock is recorded beside the task's results, and the report tabulates it
-    timing = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
-    assert timing["task"] == "reach_target" and len(timing["steps"]) == len(steps) // 2 - 2
-    assert {st["kind"] for st in timing["steps"].values()} == {"generate", "verify", "train", "evaluate", "media"}
-    assert all(st["seconds"] >= 0 and st["cpus"] >= 1 for st in timing["steps"].values())
-    prior = scheduler.prior_costs(tmp_path / "results")  # both tasks' records, for a later run's ETA
+    record = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
+    assert record["task"] == "reach_target" and len(record["steps"]) == len(steps) // 2 - 2
+    assert {st["kind"] for st in record["steps"].values()} == {"generate", "verify", "train", "evaluate", "media"}
+    assert all(st["seconds"] >= 0 and st["cpus"] >= 1 for st in record["steps"].values())
+    prior = timing.prior_costs(tmp_path / "results")  # both tasks' records, for a later run's ETA
     recorded = [json.loads((tmp_path / "results" / t / "pipeline_timing.json").read_text())["steps"]["train read"]
                 ["seconds"] for t in ("push_button", "reach_target")]
     assert prior["label"]["train read"] == recorded and len(prior["kind"]["verify"]) == 2
@@ -153,15 +156,15 @@ def test_grid_runs_in_order_then_skips_everything(tmp_path):
         "| RT", "| PB", "| all 2"]
     # a step run again (a replicate, a regenerated split) keeps the first record and adds a repeat
     gen = next(s for s in steps if s.task == "reach_target" and s.kind == "generate")
-    first = timing["steps"][gen.label]
-    scheduler.record_timing(gen, 297.3, 4.3)
-    scheduler.record_timing(gen, 12.0, None)
-    timing = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
-    assert timing["steps"][gen.label] == first
-    assert [r["seconds"] for r in timing["repeats"][gen.label]] == [297.3, 12.0]
+    first = record["steps"][gen.label]
+    timing.record_timing(gen, 297.3, 4.3)
+    timing.record_timing(gen, 12.0, None)
+    record = json.loads((tmp_path / "results" / "reach_target" / "pipeline_timing.json").read_text())
+    assert record["steps"][gen.label] == first
+    assert [r["seconds"] for r in record["repeats"][gen.label]] == [297.3, 12.0]
     assert cost_table.cost_lines(tmp_path / "results") == costs
     again = FakeRunner()
-    assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
+    assert run_in_order(pipeline.plan_steps(cfg), log=lines.append, runner=again)["ran"] == 0
     assert again.calls == []
     # each version of a split keeps its replay record, named by its content hash
     assert (tmp_path / "results" / "push_button" / "verify" / "test_a-test.json").exists()
@@ -173,11 +176,11 @@ def test_a_fresh_machine_needs_only_the_results(tmp_path):
     import shutil
 
     cfg = _cfg(tmp_path)
-    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    run_in_order(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
     shutil.rmtree(tmp_path / "data")
     shutil.rmtree(tmp_path / "runs")
     fresh = FakeRunner(machine="b")
-    assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=fresh)["ran"] == 0
+    assert run_in_order(pipeline.plan_steps(cfg), log=lambda m: None, runner=fresh)["ran"] == 0
     (tmp_path / "results" / "push_button" / "deterministic" / "eval" / "direct.json").unlink()
     steps = pipeline.plan_steps(cfg)
     assert [(s.task, s.label) for s in steps if not s.done()] == [
@@ -186,7 +189,7 @@ def test_a_fresh_machine_needs_only_the_results(tmp_path):
         ("push_button", "evaluate deterministic")]
     assert [s.status() for s in steps if s.task == "push_button"] == [
         "todo", "todo", "todo", "skip", "done", "done", "done", "skip", "skip", "todo", "todo"]  # train read: not needed
-    scheduler.run_steps(steps, log=lambda m: None, runner=fresh)
+    run_in_order(steps, log=lambda m: None, runner=fresh)
     assert [m for m, _ in fresh.calls] == ["generate", "verify", "generate", "train", "evaluate"]
     # machine b's split has its own replay record beside machine a's
     assert sorted(f.name for f in (tmp_path / "results" / "push_button" / "verify").iterdir()) == [
@@ -197,7 +200,7 @@ def test_an_evaluation_counts_only_on_a_verified_split(tmp_path):
     """An evaluation in results/ whose test split has no 100 % replay on record is not done: the
     grid verifies the split here and evaluates again."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("deterministic",))
-    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    run_in_order(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
     record = tmp_path / "results" / "reach_target" / "verify" / "test_a-test.json"
     record.unlink()
     assert [s.label for s in pipeline.plan_steps(cfg) if not s.done()] == [
@@ -213,7 +216,7 @@ def test_run_names_keep_a_recipe_apart(tmp_path):
     steps = pipeline.plan_steps(cfg)
     train = [s for s in steps if s.kind == "train"]
     assert [s.argv[s.argv.index("--name") + 1] for s in train] == ["read_v3_5k", "deterministic"]
-    scheduler.run_steps(steps, log=lambda m: None, runner=FakeRunner())
+    run_in_order(steps, log=lambda m: None, runner=FakeRunner())
     assert (tmp_path / "results" / "reach_target" / "read_v3_5k" / "eval" / "spe_N100.json").exists()
     assert (tmp_path / "runs" / "reach_target" / "read_v3_5k" / "pipeline_trained.json").exists()
     with pytest.raises(ValueError, match="not among --methods"):
@@ -224,15 +227,15 @@ def test_run_names_keep_a_recipe_apart(tmp_path):
 
 def test_a_failed_replay_stops_before_training(tmp_path):
     runner = FakeRunner(verify_rate=0.97)
-    with pytest.raises(scheduler.PipelineError, match="100 %"):
-        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, runner=runner)
+    with pytest.raises(PipelineError, match="100 %"):
+        run_in_order(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, runner=runner)
     assert [c[0] for c in runner.calls] == ["generate", "verify"]
 
 
 def test_rendered_episodes_must_match_the_evaluation(tmp_path):
     """A video whose outcomes differ from the table's on the same seeds stops the grid."""
-    with pytest.raises(scheduler.PipelineError, match="depends on its batch"):
-        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))), log=lambda m: None,
+    with pytest.raises(PipelineError, match="depends on its batch"):
+        run_in_order(pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",))), log=lambda m: None,
                             runner=FakeRunner(media_outcome=0))
     steps = pipeline.plan_steps(_cfg(tmp_path, tasks=("RT",), media_episodes=0))
     assert "media" not in {s.kind for s in steps}
@@ -245,7 +248,7 @@ def test_a_weak_task_is_evaluated_from_the_oracles_start(tmp_path):
     at each N too (retrieval or refinement: which limits the task); at or above, it does not."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",))
     runner = FakeRunner(read_top=0, media_outcome=0)
-    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=runner)
+    run_in_order(pipeline.plan_steps(cfg), log=lambda m: None, runner=runner)
     oracle = [a for m, a in runner.calls if m == "evaluate" and "cheat" in a]
     assert [a[a.index("--N") + 1] for a in oracle] == ["0", "100"] and all(a[a.index("--rank") + 1] == "1" for a in oracle)
     ev = tmp_path / "results" / "reach_target" / "read" / "eval"
@@ -268,7 +271,7 @@ def test_variants_train_with_their_own_overrides_in_their_own_runs(tmp_path):
     assert [Path(s.argv[s.argv.index("--run") + 1]).name for s in steps if s.kind == "media"] == ["read"]
     assert [s.label for s in steps if s.kind in ("train", "evaluate") and "read_" in s.label] == [
         "train read_o_em", "evaluate read_o_em", "train read_kin", "evaluate read_kin --N 0", "evaluate read_kin --N 100"]
-    scheduler.run_steps(steps, log=lambda m: None, runner=runner)
+    run_in_order(steps, log=lambda m: None, runner=runner)
     trained = {a[a.index("--name") + 1]: a[a.index("--model") + 1] for m, a in runner.calls if m == "train"}
     assert trained == {"read": "read", "read_o_em": "read_o", "read_kin": "read"}
     assert runner.sets == {"read": ["train.steps=7"], "read_o_em": ["train.steps=7", "read_o.sampler=em"],
@@ -310,7 +313,7 @@ def test_a_variant_with_reads_autoencoder_starts_from_it(tmp_path):
     assert [s.label for s in steps if s.kind == "train"].index(shared.label) < \
         [s.label for s in steps if s.kind == "train"].index("train read_sf")
     runner = FakeRunner(read_top=0, media_outcome=0)
-    scheduler.run_steps(steps, log=lambda m: None, runner=runner)
+    run_in_order(steps, log=lambda m: None, runner=runner)
     stages = [a[a.index("--stage") + 1] if "--stage" in a else "all" for m, a in runner.calls if m == "train"]
     # the autoencoder step first (listed before READ's training, which waits on it); READ's training then
     # resumes past that finished stage in the same run folder, and the variants start from it
@@ -342,13 +345,13 @@ def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
                       "evaluate read from the oracle's 500th neighbour --N 100",
                       "evaluate read on noisy images (std 0.1) --N 100", "evaluate read at brightness x0.6 --N 100"]
     runner = FakeRunner(read_top=0)
-    scheduler.run_steps(steps, log=lambda m: None, runner=runner)
+    run_in_order(steps, log=lambda m: None, runner=runner)
     names = sorted(f.stem for f in (tmp_path / "results" / "reach_target" / "read" / "eval").glob("*.json"))
     assert names == sorted(["spe_N0", "spe_N100", "cheat1_N0", "cheat1_N100", "cheat3_N0", "cheat3_N100", "cheat10_N0",
                             "cheat10_N100", "cheat500_N0", "cheat500_N1", "cheat500_N100", "spe_N100_noise0.1",
                             "spe_N100_bright0.6"])
     again = FakeRunner()
-    assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=again)["ran"] == 0
+    assert run_in_order(pipeline.plan_steps(cfg), log=lambda m: None, runner=again)["ran"] == 0
     assert not again.calls
     # READ-O and READ-L (and their variants) from the oracle's neighbours too, at their default N (Table 4)
     abl = _cfg(tmp_path / "abl", tasks=("RT",), methods=("read", "read_l", "read_o_em"), media_episodes=0,
@@ -360,10 +363,10 @@ def test_protocols_add_reads_evaluations_for_the_papers_other_tables(tmp_path):
                       "evaluate read_o_em", "evaluate read_o_em from the oracle's start",
                       "evaluate read_o_em from the oracle's 3rd neighbour",
                       "evaluate read_o_em from the oracle's 10th neighbour"]
-    scheduler.run_steps(steps, log=lambda m: None, runner=FakeRunner())
+    run_in_order(steps, log=lambda m: None, runner=FakeRunner())
     names = sorted(f.stem for f in (tmp_path / "abl" / "results" / "reach_target" / "read_o_em" / "eval").glob("*.json"))
     assert names == ["cheat1", "cheat10", "cheat3", "direct"]
-    assert scheduler.run_steps(pipeline.plan_steps(abl), log=lambda m: None, runner=FakeRunner())["ran"] == 0
+    assert run_in_order(pipeline.plan_steps(abl), log=lambda m: None, runner=FakeRunner())["ran"] == 0
     # without --protocols the weak task's oracle start is still evaluated, as the diagnosis
     diag = [s.label for s in pipeline.plan_steps(dataclasses.replace(cfg, protocols=())) if "oracle" in s.label]
     assert diag == ["evaluate read from the oracle's start --N 0 (READ below 80 %)",
@@ -381,14 +384,14 @@ def test_a_run_name_of_another_recipe_is_refused(tmp_path, capsys):
     work, since its finished evaluations would count as this recipe's; the fields that change
     inference only, or that training fills from the data, are not the recipe."""
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",), media_episodes=0)
-    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    run_in_order(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
     f = tmp_path / "results" / "reach_target" / "read" / "eval" / "spe_N0.json"
     r = json.loads(f.read_text())
     r["configs"]["sde"].update(update="cold", rounds=3)  # inference only
     r["configs"]["denoiser"]["motion_std"] = [0.1] * 10  # from the training set
     f.write_text(json.dumps(r))
     assert all(s.done() for s in pipeline.plan_steps(cfg))
-    with pytest.raises(scheduler.PipelineError, match=r"another recipe .*differs in sde\.lam\).*--run-name read=NEW_NAME"):
+    with pytest.raises(PipelineError, match=r"another recipe .*differs in sde\.lam\).*--run-name read=NEW_NAME"):
         pipeline.plan_steps(dataclasses.replace(cfg, overrides=("L=0.1",)))
     assert pipeline.plan_steps(dataclasses.replace(cfg, overrides=("L=0.1",), run_names=(("read", "read_L01"),)))
     r["configs"]["train"]["steps"] = 7
@@ -406,7 +409,7 @@ def test_runs_trained_before_the_preset_self_fed_are_kept_by_an_explicit_overrid
     from readjax import config
     assert config.presets("cpu")["sde"].self_feed == 0.5 and config.presets("paper")["sde"].self_feed == 0.0
     cfg = _cfg(tmp_path, tasks=("RT",), methods=("read",), media_episodes=0)
-    scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
+    run_in_order(pipeline.plan_steps(cfg), log=lambda m: None, runner=FakeRunner())
     evals = sorted((tmp_path / "results" / "reach_target" / "read" / "eval").glob("*.json"))
     assert evals
     for f in evals:
@@ -414,7 +417,7 @@ def test_runs_trained_before_the_preset_self_fed_are_kept_by_an_explicit_overrid
         assert r["configs"]["sde"]["self_feed"] == 0.5
         del r["configs"]["sde"]["self_feed"]  # an older readjax's record
         f.write_text(json.dumps(r))
-    with pytest.raises(scheduler.PipelineError, match=r"differs in sde\.self_feed"):
+    with pytest.raises(PipelineError, match=r"differs in sde\.self_feed"):
         pipeline.plan_steps(cfg)
     kept = dataclasses.replace(cfg, overrides=("sde.self_feed=0",))
     assert all(s.done() for s in pipeline.plan_steps(kept))
@@ -426,21 +429,15 @@ def test_eta_prices_each_step_by_its_own_label(tmp_path):
     read, det = steps
     by_label = {read.label: [2100.0]}
     by_kind = {"train": [2100.0]}
-    assert scheduler._eta([det], by_label, by_kind) == 2100.0  # nothing known of the regressor yet
+    assert timing.eta([det], by_label, by_kind) == 2100.0  # nothing known of the regressor yet
     by_label[det.label] = [420.0]
     by_kind["train"].append(420.0)
-    assert scheduler._eta([read, det], by_label, by_kind) == 2520.0
-    assert scheduler._eta([read], {}, {}) is None
+    assert timing.eta([read, det], by_label, by_kind) == 2520.0
+    assert timing.eta([read], {}, {}) is None
     # earlier runs' timings (results/<task>/pipeline_timing.json) price what this run has not timed yet
     prior = {"label": {det.label: [400.0, 440.0]}, "kind": {"train": [2000.0, 420.0], "verify": [60.0]}}
-    assert scheduler._eta([read, det], {}, {}, prior) == 1210.0 + 420.0
-    assert scheduler._eta([det], {det.label: [300.0]}, {"train": [300.0]}, prior) == 300.0  # this run first
-
-
-def test_shards_split_the_tasks(tmp_path):
-    a = {s.task for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT", "PB", "PC"), shard=(0, 2)))}
-    b = {s.task for s in pipeline.plan_steps(_cfg(tmp_path, tasks=("RT", "PB", "PC"), shard=(1, 2)))}
-    assert a == {"reach_target", "pick_up_cup"} and b == {"push_button"}
+    assert timing.eta([read, det], {}, {}, prior) == 1210.0 + 420.0
+    assert timing.eta([det], {det.label: [300.0]}, {"train": [300.0]}, prior) == 300.0  # this run first
 
 
 def test_cli_dry_run_and_errors(tmp_path, capsys):
@@ -450,25 +447,27 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "todo  ~?  reach_target: generate test 100" in out and "no timing records" in out
     # earlier runs' records price the steps: a training by its own label, the rest by their kind
-    timing = tmp_path / "res" / "push_button" / scheduler.TIMING_FILE
-    timing.parent.mkdir(parents=True)
-    timing.write_text(json.dumps({"task": "push_button", "steps": {
+    record = tmp_path / "res" / "push_button" / timing.TIMING_FILE
+    record.parent.mkdir(parents=True)
+    record.write_text(json.dumps({"task": "push_button", "steps": {
         "train read": {"kind": "train", "seconds": 2100.0}, "generate test 100": {"kind": "generate", "seconds": 60.0}}}))
-    assert _cli.run(pipeline_cli.main, argv + ["--jobs", "2"]) == 0
+    assert _cli.run(pipeline_cli.main, argv + ["--ray-address", "127.0.0.1:1"]) == 0  # a dry run starts no Ray
     out = capsys.readouterr().out
     assert "todo  ~0:35:00  reach_target: train read" in out and "todo  ~0:01:00  reach_target: generate test 100" in out
     todo = [ln for ln in out.splitlines() if ln.startswith("todo")]
     total = sum(int(h) * 3600 + int(m) * 60 + int(sec) for h, m, sec in
                 (ln.split("~")[1].split()[0].split(":") for ln in todo))
-    assert f"to run: {len(todo)} steps, about {scheduler.hms(total)} of work ({scheduler.hms(total / 2)} at --jobs 2)" in out
-    assert _cli.run(pipeline_cli.main, argv + ["--shard", "2/2"]) == 2
-    assert "--shard" in capsys.readouterr().err
+    assert f"to run: {len(todo)} steps, about {timing.hms(total)} of work" in out
+    for bad, match in ((["--resources", "train:num_gpus"], "must be a number"),
+                       (["--resources", "fit:num_cpus=1"], "KIND one of"), (["--resources", "train:gpus=1"], "KEY is")):
+        assert _cli.run(pipeline_cli.main, argv + bad) == 2
+        assert match in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, argv + ["--run-name", "read"]) == 2
     assert "METHOD=NAME" in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, ["--tasks", "XX", "--dry-run"]) == 2
-    with pytest.raises(SystemExit):
-        _cli.run(pipeline_cli.main, argv + ["--jobs", "0"])
-    assert "--jobs" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # no hand-made concurrency: Ray runs as many steps as the nodes allow
+        _cli.run(pipeline_cli.main, argv + ["--jobs", "2"])
+    assert "unrecognized arguments: --jobs" in capsys.readouterr().err
     assert _cli.run(pipeline_cli.main, argv + ["--variant", "read_kin"]) == 2
     assert "LABEL METHOD" in capsys.readouterr().err
     variant = ["--methods", "read", "--variant", "read_kin", "read", "vae.kinematic=true",
@@ -478,177 +477,51 @@ def test_cli_dry_run_and_errors(tmp_path, capsys):
     assert "reach_target: train read_kin" in out and "500th neighbour --N 1" in out
 
 
-class _FakeProc:
-    """A step's process for ``run_steps(jobs > 1)``: its command's effects happen at start (the
-    FakeRunner), its exit is seen only after ``polls`` polls, so steps overlap."""
-
-    def __init__(self, returncode, polls, on_exit):
-        self.returncode, self._left, self._on_exit = None, polls, on_exit
-        self._code = returncode
-
-    def poll(self):
-        if self.returncode is None:
-            if self._left > 0:
-                self._left -= 1
-                return None
-            self.returncode = self._code
-            self._on_exit()
-        return self.returncode
-
-    def terminate(self):
-        self.returncode = -15
-
-
-class _Starter:
-    """Starts fake processes and records when each step started and exited."""
-
-    def __init__(self, runner, seed=0, fail=None):
-        import random
-        self.runner, self.rng, self.fail = runner, random.Random(seed), fail
-        self.events, self.running, self.peak = [], 0, 0
-
-    def __call__(self, argv, log_path):
-        label = tuple(argv)
-        self.events.append(("start", label))
-        self.running += 1
-        self.peak = max(self.peak, self.running)
-        code = self.runner(argv).returncode
-        if self.fail and self.fail(argv):
-            code = 3
-            if log_path is not None:
-                log_path.write_text("line 1\nTraceback: the step's own error\n")
-
-        def on_exit():
-            self.running -= 1
-            self.events.append(("exit", label))
-
-        return _FakeProc(code, self.rng.randrange(0, 4), on_exit)
-
-
-def _check_order(steps, events):
-    """Every started step started after each step it needs had exited (or was never run here)."""
-    when = {}
-    for i, (kind, label) in enumerate(events):
-        when.setdefault((kind, label), i)
-    for s in steps:
-        start = when.get(("start", tuple(s.argv)))
-        if start is None:
-            continue
-        for n in s.needs:
-            exit_ = when.get(("exit", tuple(n.argv)))
-            assert exit_ is None and ("start", tuple(n.argv)) not in when or exit_ < start, (s.label, n.label)
-
-
-def test_parallel_steps_wait_for_what_they_need_and_give_the_same_results(tmp_path):
-    """jobs > 1: at most that many steps at once, none before what it needs (data and replay before
-    training, READ's autoencoder trained once before its variants and READ's denoiser, an
-    evaluation before the media and the diagnosis that compare with it), and the same results as
-    one step at a time."""
-    variant = dict(methods=("read", "deterministic", "read_sf"),
-                   variants=(("read_sf", "read", ("sde.self_feed=0.5",)),), read_N=(0, 100))
-    seq = _cfg(tmp_path / "seq", **variant)
-    scheduler.run_steps(pipeline.plan_steps(seq), log=lambda m: None, runner=FakeRunner(read_top=0, media_outcome=0))
-    par = _cfg(tmp_path / "par", **variant)
-    steps = pipeline.plan_steps(par)
-    shared = next(s for s in steps if s.label.endswith("(autoencoder only)"))
-    train_read = next(s for s in steps if s.label == "train read" and s.task == shared.task)
-    assert shared in train_read.needs  # one autoencoder, never trained twice at once
-    media = next(s for s in steps if s.kind == "media")
-    assert any(n.label == "evaluate read --N 100" for n in media.needs)
-    for seed in range(3):
-        root = tmp_path / f"par{seed}"
-        cfg = _cfg(root, **variant)
-        steps = pipeline.plan_steps(cfg)
-        starter, lines = _Starter(FakeRunner(read_top=0, media_outcome=0), seed), []
-        out = scheduler.run_steps(steps, log=lines.append, jobs=3, start=starter, poll=0,
-                                  log_dir=root / "logs")
-        assert starter.peak == 3 and starter.running == 0
-        trainings = [argv for kind, argv in starter.events if kind == "start" and "experiments.train" in argv]
-        assert {argv[argv.index("--task") + 1] for argv in trainings[:2]} == {"reach_target", "push_button"}
-        _check_order(steps, starter.events)
-        assert out["ran"] == sum(e[0] == "start" for e in starter.events)
-        files = lambda r: sorted(str(f.relative_to(r)) for f in (r / "results").rglob("*")  # noqa: E731
-                                 if f.name != "pipeline_timing.json")
-        assert files(root) == files(tmp_path / "seq")
-        assert any("started; 3 running" in ln for ln in lines) and any(ln.startswith("done") for ln in lines)
-        assert scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=3,
-                                   start=_Starter(FakeRunner()), poll=0)["ran"] == 0
-
-
-def test_a_parallel_failure_stops_new_steps_and_shows_the_steps_log(tmp_path):
-    cfg = _cfg(tmp_path)
-    starter = _Starter(FakeRunner(), fail=lambda argv: "--model" in argv and "deterministic" in argv)
-    with pytest.raises(scheduler.PipelineError, match="(?s)train deterministic` failed.*the step's own error"):
-        scheduler.run_steps(pipeline.plan_steps(cfg), log=lambda m: None, jobs=2, start=starter, poll=0,
-                            log_dir=tmp_path / "logs")
-    assert starter.running == 0  # the running steps finished; none started after the failure
-    failed = next(i for i, (kind, argv) in enumerate(starter.events)
-                  if kind == "exit" and "deterministic" in argv and "--model" in argv)
-    assert not any(kind == "start" for kind, _ in starter.events[failed:])
-    # a failed replay: nothing is trained on that task
-    starter = _Starter(FakeRunner(verify_rate=0.97))
-    with pytest.raises(scheduler.PipelineError, match="ground truth did not replay"):
-        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path / "b")), log=lambda m: None, jobs=4,
-                            start=starter, poll=0)
-    assert not any("experiments.train" in e[1] for e in starter.events)
-
-
-def test_an_interrupted_parallel_grid_stops_its_running_steps(tmp_path):
-    """Ctrl-C or `kill` (the CLI turns SIGTERM into the same) stops the steps the grid started."""
-    started = []
-
-    def start(argv, log_path):
-        if started:
-            raise KeyboardInterrupt
-        started.append(_FakeProc(0, 10 ** 6, lambda: None))
-        return started[0]
-
-    with pytest.raises(KeyboardInterrupt):
-        scheduler.run_steps(pipeline.plan_steps(_cfg(tmp_path)), log=lambda m: None, jobs=2, start=start, poll=0)
-    assert started[0].returncode == -15
-
-
-def test_a_parallel_grid_says_what_is_running_and_how_far_it_has_got(tmp_path):
-    """Every ``heartbeat`` seconds a line names each running step, its time so far and its progress
-    (a training: its stages' last step against their caps, read from the run folder)."""
-    run = tmp_path / "runs" / "reach_target" / "read"
-    (run / "vae").mkdir(parents=True)
-    (run / "read").mkdir()
-    stage = lambda vae, steps: json.dumps({"config": {"train": {"vae_steps": vae, "steps": steps}}})  # noqa: E731
-    (run / "vae" / "stage.json").write_text(stage(3000, 5000))
-    (run / "vae" / "metrics.jsonl").write_text('{"step": 3000}\n')
-    (run / "vae" / "stop.json").write_text('{"reason": "step cap"}')
-    (run / "read" / "stage.json").write_text(stage(3000, 5000))
-    (run / "read" / "metrics.jsonl").write_text('{"step": 25}\n{"step": 2250}\n')
-
-    done: set = set()
-    steps = [scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: "x" in done,
-                            progress=lambda: stage_folder.progress(run)),
-             scheduler.Step("evaluate", "push_button", "evaluate read --N 100", ["y"], made=lambda: "y" in done)]
-    start = lambda argv, path: _FakeProc(0, 3, lambda: done.add(argv[0]))  # noqa: E731
-    lines = []
-    scheduler.run_steps(steps, log=lines.append, jobs=2, start=start, poll=0, heartbeat=0)
-    beats = [ln for ln in lines if ln.startswith("running")]
-    assert beats and "reach_target: train read (0:00:00, vae done, read 2250/5000)" in beats[0]
-    assert "push_button: evaluate read --N 100 (0:00:00)" in beats[0] and "0 waiting" in beats[0]
-    done.clear()
-    quiet = []
-    scheduler.run_steps(steps, log=quiet.append, jobs=2, start=start, poll=0)
-    assert not any(ln.startswith("running") for ln in quiet)  # the default: every 10 minutes
-
-
-def test_reads_training_is_not_held_back_by_the_autoencoder_step_its_variants_share(tmp_path):
-    """READ's training waits on the autoencoder-only step that READ-L and READ's variants share, so
-    that step is listed right before READ's training: with the slots filled in list order, READ (and
-    then its evaluations) starts before the baselines listed after it, as the grid intends."""
-    cfg = _cfg(tmp_path, tasks=("RT",), methods=("read", "deterministic", "vpsde", "read_l"), read_N=(0, 100))
+def test_steps_are_handed_to_ray_after_what_they_need(tmp_path):
+    """Ray starts a step once the steps it needs have finished (their tasks' results are its
+    arguments): data and replay before training, READ's autoencoder trained once before its
+    variants and READ's denoiser, an evaluation before the media and the diagnosis that compare with
+    it; the listed order already respects them, and READ's autoencoder step is listed right before
+    READ's training, so READ (then its evaluations) is handed over before the baselines listed after."""
+    cfg = _cfg(tmp_path, methods=("read", "deterministic", "vpsde", "read_l", "read_sf"),
+               variants=(("read_sf", "read", ("sde.self_feed=0.5",)),), read_N=(0, 100))
     steps = pipeline.plan_steps(cfg)
-    labels = [s.label for s in steps if s.kind == "train"]
-    assert labels == ["train read (autoencoder only)", "train read", "train deterministic", "train vpsde",
-                      "train read_l"]
-    starter = _Starter(FakeRunner(read_top=0, media_outcome=0), 0)
-    scheduler.run_steps(steps, log=lambda m: None, jobs=2, start=starter, poll=0, log_dir=tmp_path / "logs")
-    started = [" ".join(argv) for kind, argv in starter.events if kind == "start" and "experiments.train" in argv]
-    names = [a.split("--name ")[1].split()[0] + (" (vae)" if "--stage vae" in a else "") for a in started]
-    assert names[0] == "read (vae)"
-    assert names.index("read") < min(names.index("vpsde"), names.index("read_l")), names
+    assert ray_grid._in_dependency_order(steps) == list(range(len(steps)))
+    for task in ("reach_target", "push_button"):
+        mine = [s for s in steps if s.task == task]
+        by_label = {s.label: s for s in mine}
+        shared, read = by_label["train read (autoencoder only)"], by_label["train read"]
+        assert shared in read.needs and shared in by_label["train read_l"].needs and shared in by_label["train read_sf"].needs
+        assert all(n.kind in ("generate", "verify") for n in shared.needs) and len(shared.needs) == 3
+        media = next(s for s in mine if s.kind == "media")
+        assert by_label["evaluate read --N 100"] in media.needs
+        for s in mine:
+            if s.kind == "evaluate":  # its training, and the task's data and replay
+                assert {n.kind for n in s.needs} >= {"generate", "verify", "train"}
+        trains = [s.label for s in mine if s.kind == "train"]
+        assert trains[:3] == ["train read (autoencoder only)", "train read", "train deterministic"]
+    # a step that needs a step listed after it is handed over after it; a cycle is refused
+    a, b = (Step("train", "reach_target", x, ["x"], made=lambda: False) for x in "ab")
+    a.needs.append(b)
+    assert ray_grid._in_dependency_order([a, b]) == [1, 0]
+    b.needs.append(a)
+    with pytest.raises(PipelineError, match="needs itself"):
+        ray_grid._in_dependency_order([a, b])
+
+
+def test_what_a_step_asks_of_a_node(tmp_path):
+    """Each kind asks for a CPU and memory; a training also a share of a GPU where the cluster has
+    GPUs (the GPU nodes take the trainings, the CPU nodes the rest); --resources changes any of it,
+    and a kind no node could run is refused instead of waiting for ever."""
+    plain = ray_grid.step_resources()
+    assert all(d["num_cpus"] == 1 and d["memory"] >= ray_grid.GIB and "num_gpus" not in d for d in plain.values())
+    gpu = ray_grid.step_resources(gpus=2)
+    assert gpu["train"]["num_gpus"] == pytest.approx(1 / ray_grid.TRAININGS_PER_GPU)
+    assert "num_gpus" not in gpu["evaluate"]
+    mine = ray_grid.step_resources(ray_grid.parse_resources(["train:num_gpus=0.5,memory=1.5", "evaluate:num_cpus=2"]), 2)
+    assert mine["train"] == {"num_cpus": 1, "num_gpus": 0.5, "memory": int(1.5 * ray_grid.GIB)}
+    assert mine["evaluate"]["num_cpus"] == 2
+    node = {"Alive": True, "Resources": {"CPU": 2.0, "memory": 2.5 * ray_grid.GIB}}
+    ray_grid.check_fits(mine, ["evaluate"], [node])
+    with pytest.raises(PipelineError, match=r"a train step asks \(CPU 1, GPU 0.5, memory 1.5 GiB\).*--resources train:"):
+        ray_grid.check_fits(mine, ["evaluate", "train"], [node, {"Alive": False, "Resources": {"GPU": 1.0}}])

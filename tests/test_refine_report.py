@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from experiments import refine_report as cli
-from readjax import paired, refine_report
+from readjax.lab import paired, refine_report
 
 
 def _row(split, n, errs):
@@ -88,7 +88,7 @@ def test_summary_tabulates_saved_reports_and_refuses_other_json(tmp_path, capsys
 
 
 def test_the_report_gathers_saved_refine_reports_by_run_name(tmp_path):
-    from readjax import report
+    from readjax.lab import report
 
     def save(run, name, record):
         f = tmp_path / "reach_target" / run / "diagnostics" / name

@@ -4,7 +4,7 @@ import json
 
 from experiments import _cli
 from experiments import report as report_cli
-from readjax import cost_table, report
+from readjax.lab import cost_table, report
 
 
 def _write(root, task, run, name, rate, **cfg):
@@ -45,16 +45,16 @@ def test_report_groups_protocols_and_excludes(tmp_path, capsys):
 def test_include_keeps_only_the_named_runs_and_sweeps(tmp_path):
     """--include: a focused report of one grid's runs (and sweeps) out of a results folder holding
     many; --exclude still applies within it."""
-    from readjax import sweep
+    from readjax.lab import sweep_grid, sweep_table
 
     runs = tmp_path / "runs"
     _write(runs, "reach_target", "read_rep", "spe_N10", 0.5)
     _write(runs, "reach_target", "det_conv", "direct", 0.25, N=None)
     _write(runs, "reach_target", "vpsde_conv", "N100", 0.125)
     _write(runs, "reach_target", "read_old", "spe_N10", 0.99)
-    cell = {**sweep.DEFAULTS, "success": 0.5, "seeds": [1, 2], "outcomes": [1, 0]}
+    cell = {**sweep_grid.DEFAULTS, "success": 0.5, "seeds": [1, 2], "outcomes": [1, 0]}
     for name in ("table7", "old_sweep"):
-        sweep.write_sweep({"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [100]}, "episodes": 2,
+        sweep_table.write_sweep({"task": "reach_target", "code": "RT", "model": "read", "grid": {"N": [100]}, "episodes": 2,
                            "cells": [cell]}, runs / "reach_target" / name)
     out = tmp_path / "focused.md"
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--include", "read_rep", "*_conv",
@@ -98,7 +98,7 @@ def test_provenance_separates_machines_and_differing_versions(tmp_path):
 
 
 def test_mcnemar_exact_values():
-    from readjax.paired import mcnemar_p
+    from readjax.lab.paired import mcnemar_p
 
     assert mcnemar_p([True] * 6 + [False] * 4, [False] * 6 + [False] * 4) == 2 / 64  # 6 discordant, one way
     assert mcnemar_p([True, False], [True, False]) == 1.0  # no discordant episodes

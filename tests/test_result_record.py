@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from readjax.config import DEFAULT_N
 from readjax.config import configs_to_dict, override, presets
-from readjax.result_record import by_seed, is_default_eval, is_spe_eval, protocol, recipe_differences, training_stops
+from readjax.lab.result_record import by_seed, is_default_eval, is_spe_eval, protocol, recipe_differences, training_stops
 
 
 def _read(N, update="cold_anchor", rounds=2, run_sde=("cold_anchor", 2), **cfg):

@@ -7,7 +7,9 @@ import json
 
 import pytest
 
-from readjax import scheduler, stage_folder
+from readjax import stage_folder
+from readjax.lab.steps import Step
+from readjax.lab.timing import step_cost
 
 
 def _stage(vae: int, steps: int) -> str:
@@ -61,10 +63,9 @@ def test_a_training_under_way_is_priced_by_its_own_pace(tmp_path):
     assert stage_folder.seconds_left(run, ("vae", "read")) is None  # one row into the resumed run
     (run / "read" / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in first_run + second_run))
     assert stage_folder.seconds_left(run, ("vae", "read")) == pytest.approx((5000 - 1050) * 0.2)
-    step = scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: False,
-                          seconds_left=lambda: stage_folder.seconds_left(run, ("vae", "read")))
+    step = Step("train", "reach_target", "train read", ["x"], made=lambda: False,
+                seconds_left=lambda: stage_folder.seconds_left(run, ("vae", "read")))
     prior = {"label": {"train read": [2100.0]}, "kind": {"train": [2100.0]}}
-    assert scheduler.step_cost(step, {}, {}, prior) == pytest.approx(790.0)  # its own pace before the others'
-    assert scheduler.step_cost(scheduler.Step("train", "reach_target", "train read", ["x"], made=lambda: False),
-                               {}, {}, prior) == 2100.0
+    assert step_cost(step, {}, {}, prior) == pytest.approx(790.0)  # its own pace before the others'
+    assert step_cost(Step("train", "reach_target", "train read", ["x"], made=lambda: False), {}, {}, prior) == 2100.0
     assert stage_folder.seconds_left(tmp_path / "nothing yet", ("vae", "read")) is None

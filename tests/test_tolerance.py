@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from readjax import geometry as geo
-from readjax import tasks, tolerance
+from readjax import tasks
+from readjax.lab import tolerance
 from readjax import motion as motion_lib
 from readjax.sim.camera import camera_from_model
 

@@ -23,8 +23,8 @@ import numpy as np
 
 from readjax import tasks
 from readjax.config import preset
-from readjax.paired import counts, paired_outcomes
-from readjax.result_record import eval_config_of, is_eval, protocol, training_stops
+from readjax.lab.paired import counts, paired_outcomes
+from readjax.lab.result_record import eval_config_of, is_eval, protocol, training_stops
 from readjax.stage_folder import LOSS_CURVE
 
 ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l", "read_o_em")

@@ -1,12 +1,12 @@
 """The grid's cost per task: the wall clock and CPU time that ``experiments.pipeline`` recorded for
-each step (``<task>/pipeline_timing.json``, :mod:`readjax.scheduler`), as the report's table."""
+each step (``<task>/pipeline_timing.json``, :mod:`readjax.lab.timing`), as the report's table."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from readjax import tasks
-from readjax.scheduler import timing_records
+from readjax.lab.timing import timing_records
 
 
 def cost_lines(runs_root: str | Path, only_tasks: set[str] | None = None) -> list[str]:

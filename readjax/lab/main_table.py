@@ -16,10 +16,11 @@ import json
 import os
 from pathlib import Path
 
-from readjax import failure_modes, paper, tasks
+from readjax import failure_modes, tasks
+from readjax.lab import paper
 from readjax.config import preset
-from readjax.paired import discordant
-from readjax.result_record import is_direct_eval, is_spe_eval, training_stops
+from readjax.lab.paired import discordant
+from readjax.lab.result_record import is_direct_eval, is_spe_eval, training_stops
 from readjax.tables import success_chart
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"

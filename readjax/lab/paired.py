@@ -5,11 +5,10 @@ discordant episodes (one side succeeds, the other fails), matched by episode see
 
 from __future__ import annotations
 
-from math import comb
-
 import numpy as np
+from scipy.stats import binomtest
 
-from readjax.result_record import by_seed
+from readjax.lab.result_record import by_seed
 
 
 def mcnemar_p(a, b) -> float:
@@ -30,8 +29,7 @@ def sign_test_p(n_plus: int, n_minus: int) -> float:
     n = n_plus + n_minus
     if n == 0:
         return 1.0
-    tail = sum(comb(n, k) for k in range(min(n_plus, n_minus) + 1)) / 2**n
-    return min(1.0, 2 * tail)
+    return float(binomtest(n_plus, n, 0.5, alternative="two-sided").pvalue)
 
 
 def paired_outcomes(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray] | None:

@@ -23,3 +23,15 @@ def mean_over(rates: dict[str, float], codes) -> float:
         raise KeyError(f"no rate for {', '.join(missing)}")
     return sum(rates[c] for c in codes) / len(codes)
 
+
+# Table 5 (retrieval), the oracle rows "Cheat (i)": the i-th nearest training demonstration to the
+# ground-truth motion, executed without refinement (N = 0). Printed averages beside them.
+CHEAT = {
+    1: dict(zip(AVG16, (85, 96, 96, 57, 86, 99, 85, 42, 87, 76, 51, 94, 1, 13, 0, 1))),
+    3: dict(zip(AVG16, (67, 81, 83, 35, 71, 92, 70, 30, 86, 38, 36, 80, 0, 7, 2, 1))),
+    10: dict(zip(AVG16, (56, 21, 47, 17, 64, 58, 50, 9, 72, 16, 19, 56, 0, 2, 3, 1))),
+}
+CHEAT_AVERAGES = {1: {"Avg12": 79.5, "Avg16": 60.6}, 3: {"Avg12": 64.1, "Avg16": 48.7},
+                  10: {"Avg12": 40.4, "Avg16": 30.7}}
+# Table 5, row READ: READ's own retrieval (SPE top-1) executed without refinement.
+RETRIEVAL_ONLY = dict(zip(AVG16, (73, 89, 86, 37, 97, 97, 77, 37, 91, 73, 34, 91, 0, 19, 3, 1)))

@@ -17,7 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from readjax import failure_modes, paired
+from readjax import failure_modes
+from readjax.lab import paired
 from readjax import motion as motion_lib
 from readjax.diffusion.latent import codec
 from readjax.diffusion.refine import refine

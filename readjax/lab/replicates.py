@@ -9,7 +9,7 @@ import json
 import numpy as np
 
 from readjax import tasks
-from readjax.result_record import eval_config_of, with_defaults
+from readjax.lab.result_record import eval_config_of, with_defaults
 from readjax.tables import natural_key, row_label
 
 

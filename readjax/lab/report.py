@@ -10,12 +10,14 @@ from typing import Callable
 
 import numpy as np
 
-from readjax import failure_modes, refine_report, tasks, verification
-from readjax.cost_table import cost_lines
-from readjax.paired import mcnemar_p, paired_outcomes
-from readjax.replicates import across_lines
-from readjax.result_record import PROTOCOLS, protocol
-from readjax.sweep import CELL_PREFIX, format_table7
+from readjax import failure_modes, tasks
+from readjax.lab import refine_report, verification
+from readjax.lab.cost_table import cost_lines
+from readjax.lab.paired import mcnemar_p, paired_outcomes
+from readjax.lab.replicates import across_lines
+from readjax.lab.result_record import PROTOCOLS, protocol
+from readjax.lab.sweep_grid import CELL_PREFIX
+from readjax.lab.sweep_table import format_table7
 from readjax.tables import markdown_table, natural_key, row_label, success_chart, success_table
 
 
@@ -222,7 +224,7 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
     """The markdown report of every evaluation under ``runs_root`` (runs and sweeps filtered by
     ``exclude`` / ``include`` name patterns, see ``collect``); ``compare``: the rows to pair every
     other row with (one paired table each); ``main``: builds a section shown first, from the results
-    and a chart path beside ``out`` (``readjax.main_table.lines`` for the paper's main table)."""
+    and a chart path beside ``out`` (``readjax.lab.main_table.lines`` for the paper's main table)."""
     compare = (compare,) if isinstance(compare, str) else tuple(compare or ())
     results = collect(runs_root, exclude, include)
     found_sweeps = sweeps(runs_root, exclude, include)

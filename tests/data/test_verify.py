@@ -117,7 +117,7 @@ def test_format_1_dataset_is_refused_in_one_line(data, tmp_path, capsys):
 def test_replay_record_is_kept_per_version_of_the_split(data, capsys, tmp_path):
     """--results keeps the record under the split's content hash, the hash an evaluation of the same
     episodes records and the pipeline computes; another version of the split is not verified by it."""
-    from readjax import pipeline, verification
+    from readjax.lab import pipeline, verification
 
     split = store.split_dir(data, TASK, "test")
     rc = _cli.run(verify_cli.main, ["--task", TASK, "--data", str(data), "--episodes", "8", "--out",

@@ -121,3 +121,22 @@ def test_prepare_records_the_adjusted_configs(data):
     assert spec == base.read_run(data / "prep")
     assert set(spec["configs"]) == {"resnet", "train"} and spec["configs"]["train"]["K"] == 3
     assert spec["episodes"] == 8 and spec["dataset_fingerprint"] == run.ds.fingerprint
+
+
+def test_plan_refuses_bad_input_with_a_clear_message(data):
+    """What a new user tries first: an empty batch, no key, a batch of keys (each a one-line ValueError
+    before any JAX work); a legacy ``PRNGKey`` works like a typed key."""
+    run = data / "runs" / "reach_target" / "read_converged"
+    if not run.exists():
+        pytest.skip("needs test_train_and_plan[read_converged]'s run")
+    planner = Planner.load(run)
+    rgbd = planner.database.rgbd[:2]
+    with pytest.raises(ValueError, match="holds no images"):
+        planner.plan(rgbd[:0], jax.random.key(0), N=2)
+    for bad in (None, 0, np.zeros(3, np.float32)):
+        with pytest.raises(ValueError, match="key must be a JAX PRNG key"):
+            planner.plan(rgbd, bad, N=2)
+    with pytest.raises(ValueError, match="one PRNG key for the whole batch"):
+        planner.plan(rgbd, jax.random.split(jax.random.key(0), 2), N=2)
+    legacy = planner.plan(rgbd, jax.random.PRNGKey(0), N=2)
+    assert legacy.motion.shape == (2, 101, 10) and np.all(np.isfinite(legacy.motion))

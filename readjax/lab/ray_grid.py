@@ -1,0 +1,290 @@
+"""The steps of a grid or a sweep on Ray: each step one Ray task, on whichever node has what it asks.
+
+:func:`run_on_ray` starts an embedded Ray on this machine (no address: as many steps at once as its
+CPUs allow) or joins a cluster (``address``, or the ``RAY_ADDRESS`` variable), and submits every step
+not yet done as a task declaring what it needs (:data:`STEP_RESOURCES`: a CPU each, a share of a GPU for
+a training where the cluster has GPUs, memory), its dependencies the tasks of the steps it ``needs``
+(their ObjectRefs): Ray starts it once they have finished, on any node. A task runs
+:func:`readjax.lab.steps.run_step` there: skipped if done by then, else its command, its output checked,
+its time recorded beside the results. What makes a step done stays on disk, so every node must see
+the grid's folders at the same paths (a shared folder: NFS, a mounted bucket; docs/cluster.md). A
+step whose worker or node is lost is retried by Ray (:data:`MAX_RETRIES`), on another node where one
+is left: the command dies with its worker, and a retry resumes what it left (or finds it done), so a
+lost node loses at most its steps in progress. A failed step fails the steps that need it, not the
+others: the grid runs on and names every failure at the end.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+from typing import Callable
+
+from readjax.lab.steps import PipelineError, Step, run_step, step_log_path
+from readjax.lab.timing import eta, hms
+
+GIB = 1024 ** 3
+# What a step asks of the node that runs it, by kind (Ray's task options; memory in bytes): one CPU
+# each, so a machine runs as many steps at once as it has cores, and memory: the tiny grid's steps
+# peak at 0.9-1.3 GB (RSS, measured: docs/cluster.md), the cpu preset's full-size ones were not
+# measured, hence the room. ``--resources KIND:KEY=VALUE,...`` changes them.
+STEP_RESOURCES = {
+    "generate": {"num_cpus": 1, "memory": 2 * GIB},
+    "verify": {"num_cpus": 1, "memory": 2 * GIB},
+    "train": {"num_cpus": 1, "memory": 3 * GIB},
+    "evaluate": {"num_cpus": 1, "memory": 2 * GIB},
+    "media": {"num_cpus": 1, "memory": 2 * GIB},
+}
+# where the cluster has GPUs a training asks for this share of one (a GPU holds a dozen of the cpu
+# preset's trainings; JAX's preallocation is turned off for them), and only the trainings: the GPU
+# nodes take them, the CPU nodes the rest
+TRAININGS_PER_GPU = 12
+MAX_RETRIES = 3  # tries of a step after its first whose worker or node was lost
+
+
+def parse_resources(items) -> dict[str, dict]:
+    """``["train:num_gpus=0.5,memory=8", "evaluate:num_cpus=2"]`` -> {kind: {option: value}}, memory
+    given in GiB."""
+    out: dict[str, dict] = {}
+    for item in items:
+        kind, _, pairs = item.partition(":")
+        if kind not in STEP_RESOURCES or not pairs:
+            raise ValueError(f"--resources {item!r}: expected KIND:KEY=VALUE[,KEY=VALUE], KIND one of "
+                             f"{', '.join(STEP_RESOURCES)}")
+        for pair in pairs.split(","):
+            key, _, value = pair.partition("=")
+            if key not in ("num_cpus", "num_gpus", "memory"):
+                raise ValueError(f"--resources {item!r}: KEY is num_cpus, num_gpus or memory (GiB), got {key!r}")
+            try:
+                v = float(value)
+            except ValueError:
+                raise ValueError(f"--resources {item!r}: {key} must be a number, got {value!r}") from None
+            if v < 0:
+                raise ValueError(f"--resources {item!r}: {key} must be >= 0")
+            out.setdefault(kind, {})[key] = int(v * GIB) if key == "memory" else v
+    return out
+
+
+def step_resources(overrides: dict | None = None, gpus: float = 0.0) -> dict[str, dict]:
+    """Each kind's Ray options: :data:`STEP_RESOURCES`, a training's share of a GPU where the cluster
+    has ``gpus``, then ``overrides`` (:func:`parse_resources`)."""
+    out = {kind: dict(options) for kind, options in STEP_RESOURCES.items()}
+    if gpus > 0:
+        out["train"]["num_gpus"] = 1 / TRAININGS_PER_GPU
+    for kind, options in (overrides or {}).items():
+        out[kind].update(options)
+    return out
+
+
+_RAY_NAMES = {"num_cpus": "CPU", "num_gpus": "GPU", "memory": "memory"}
+
+
+def check_fits(demands: dict[str, dict], kinds, nodes: list[dict]) -> None:
+    """Refuse a grid with a kind of step that no node of the cluster could ever run (Ray would wait
+    for it forever): naming the kind, what it asks and how to ask for less."""
+    totals = [n["Resources"] for n in nodes if n.get("Alive")]
+    for kind in sorted(set(kinds)):
+        ask = {name: demands[kind][k] for k, name in _RAY_NAMES.items() if demands[kind].get(k)}
+        if not any(all(node.get(k, 0) >= v for k, v in ask.items()) for node in totals):
+            shown = ", ".join(f"{k} {v / GIB:.1f} GiB" if k == "memory" else f"{k} {v:g}" for k, v in ask.items())
+            raise PipelineError(f"no node of the Ray cluster has what a {kind} step asks ({shown}); ask for less "
+                                f"with --resources {kind}:KEY=VALUE (docs/cluster.md)")
+
+
+def connect(address: str | None = None):
+    """Ray, joined to the cluster at ``address`` (else ``RAY_ADDRESS``; else a new embedded Ray on this
+    machine); and whether this call connected it (False: it already was)."""
+    import ray
+
+    if ray.is_initialized():
+        return ray, False
+    address = address or os.environ.get("RAY_ADDRESS") or "local"
+    kwargs = {"include_dashboard": False} if address == "local" else {}
+    ray.init(address=address, logging_level=logging.WARNING, **kwargs)
+    return ray, True
+
+
+def _in_dependency_order(steps: list[Step]) -> list[int]:
+    """Indices of ``steps``, each after the steps of the list it needs (their listed order otherwise)."""
+    index = {id(s): i for i, s in enumerate(steps)}
+    order, placed, visiting = [], set(), set()
+
+    def visit(i: int) -> None:
+        if i in placed:
+            return
+        if i in visiting:
+            raise PipelineError(f"`{steps[i].label}` needs itself through the steps it needs")
+        visiting.add(i)
+        for n in steps[i].needs:
+            if id(n) in index:
+                visit(index[id(n)])
+        visiting.discard(i)
+        placed.add(i)
+        order.append(i)
+
+    for i in range(len(steps)):
+        visit(i)
+    return order
+
+
+def _step_task(steps: list[Step], i: int, cwd: str, python: str, log_path, heartbeat: float, *needs) -> dict:
+    """One step as a Ray task, on whichever node runs it (``needs``: the results of the steps it needs,
+    there only so that Ray starts it after them). The grid's relative paths are read from ``cwd``,
+    which every node must see; its ``python`` commands run with this node's Python."""
+    import ray
+
+    step = steps[i]
+    node, ip = ray.get_runtime_context().get_node_id(), ray.util.get_node_ip_address()
+    if not os.path.isdir(cwd):
+        raise PipelineError(f"{step.task}: `{step.label}`: the grid's folder {cwd} is not on node {ip}: every node "
+                            f"must see the grid's folders at the same paths (docs/cluster.md)")
+    os.chdir(cwd)
+    step.argv = [sys.executable if a == python else a for a in step.argv[:1]] + step.argv[1:]
+    # a step that asked for no GPU uses none (Ray leaves a GPU node's devices visible to it); steps
+    # sharing a GPU must not each claim most of its memory
+    env = {"XLA_PYTHON_CLIENT_PREALLOCATE": "false"} if ray.get_gpu_ids() else {"CUDA_VISIBLE_DEVICES": ""}
+    if log_path is not None:
+        log_path.parent.mkdir(parents=True, exist_ok=True)
+        with open(log_path, "a") as f:  # a retry's run follows the lost one's in the same log
+            f.write(f"=== {time.strftime('%Y-%m-%dT%H:%M:%S%z')} node {ip} {node}, pid {os.getpid()}\n")
+    outcome = run_step(step, log_path=log_path, heartbeat=heartbeat, env=env)
+    return {**outcome, "node": node, "ip": ip}
+
+
+_REMOTE = None
+
+
+def _remote():
+    global _REMOTE
+    if _REMOTE is None:
+        import ray
+        _REMOTE = ray.remote(_step_task)
+    return _REMOTE
+
+
+def run_on_ray(steps: list[Step], log: Callable[[str], None] = print, prior: dict | None = None,
+               address: str | None = None, log_dir=None, heartbeat: float = 600.0, resources: dict | None = None,
+               on_finished: Callable[[Step], None] | None = None) -> dict:
+    """Run the steps not yet done on Ray (see the module); each step's output goes to
+    ``log_dir/<task>/<label>.log`` (a folder every node sees; None: the driver's terminal, through Ray).
+    A line per finished step (where it ran, the elapsed time, the ETA priced by ``prior``:
+    :func:`readjax.lab.timing.prior_costs`), and every ``heartbeat`` seconds a line with the steps
+    under way and how far each has got. ``on_finished(step)`` here after each step that finished.
+    Returns {"ran", "skipped", "seconds": {kind: s}, "nodes": {(task, label): node id}}; raises
+    PipelineError naming every failed step (and those not run for want of one) once the rest is done."""
+    todo = [s for s in steps if not s.done()]
+    summary = {"ran": 0, "skipped": len(steps) - len(todo), "seconds": {}, "nodes": {}}
+    if not todo:
+        log(f"pipeline: {len(steps)} steps, all done")
+        return summary
+    ray, connected = connect(address)
+    try:
+        return _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, on_finished)
+    finally:
+        if connected:
+            ray.shutdown()
+
+
+def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, on_finished) -> dict:
+    cluster, nodes = ray.cluster_resources(), [n for n in ray.nodes() if n.get("Alive")]
+    demands = step_resources(resources, cluster.get("GPU", 0.0))
+    check_fits(demands, [s.kind for s in todo], nodes)
+    slots = max(1, int(cluster.get("CPU", 1)))
+    log(f"pipeline: {len(steps)} steps, {summary['skipped']} already done, {len(todo)} to run on Ray: "
+        f"{len(nodes)} node(s), {cluster.get('CPU', 0):g} CPUs, {cluster.get('GPU', 0):g} GPUs")
+    shared, task, refs = ray.put(todo), _remote(), {}
+    index = {id(s): i for i, s in enumerate(todo)}
+    needs = {i: [index[id(n)] for n in s.needs if id(n) in index] for i, s in enumerate(todo)}
+    for i in _in_dependency_order(todo):
+        s = todo[i]
+        path = None if log_dir is None else step_log_path(log_dir, s)
+        refs[i] = task.options(**demands[s.kind], max_retries=MAX_RETRIES, name=f"{s.task}: {s.label}").remote(
+            shared, i, os.getcwd(), sys.executable, path, heartbeat, *[refs[n] for n in needs[i]])
+    pending = {ref: i for i, ref in refs.items()}
+    finished, failed, failures = set(), set(), []
+    by_kind: dict[str, list[float]] = {}
+    by_label: dict[str, list[float]] = {}
+    t_start = time.time()
+    try:
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=heartbeat)
+            if not ready:
+                log(_running_line(todo, pending.values(), needs, finished, by_label, by_kind, prior, slots, t_start))
+                continue
+            i = pending.pop(ready[0])
+            step = todo[i]
+            try:
+                outcome = ray.get(ready[0])
+            except Exception as e:  # noqa: BLE001  the step's own error, or one of a step it needs
+                failed.add(i)
+                lost = [todo[n].label for n in needs[i] if n in failed or _errored(ray, refs[n])]
+                why = f"not run: it needs `{lost[0]}`, which failed" if lost else _reason(e)
+                failures.append(why if isinstance(getattr(e, "cause", None), PipelineError) and not lost
+                                else f"{step.task}: `{step.label}` {why}")
+                log(f"failed  {step.task}: {step.label}" + (f" ({why})" if lost else ""))
+                continue
+            finished.add(i)
+            summary["nodes"][(step.task, step.label)] = outcome["node"]
+            if on_finished is not None:
+                on_finished(step)
+            if not outcome["ran"]:
+                summary["skipped"] += 1
+                log(f"skipped {step.task}: {step.label} ({outcome['status']})")
+                continue
+            summary["ran"] += 1
+            by_kind.setdefault(step.kind, []).append(outcome["seconds"])
+            by_label.setdefault(step.label, []).append(outcome["seconds"])
+            left = eta([todo[j] for j in pending.values()], by_label, by_kind, prior)
+            log(f"[{len(finished) + len(failed)}/{len(todo)}] done {step.task}: {step.label} in "
+                f"{hms(outcome['seconds'])} on node {outcome['ip']} {outcome['node'][:8]} (elapsed "
+                f"{hms(time.time() - t_start)}{', ETA ' + hms(left / slots) if left is not None else ''})")
+    except KeyboardInterrupt:  # Ctrl-C or `kill` (the CLI's SIGTERM): stop the steps under way with the grid
+        for ref in pending:
+            ray.cancel(ref)
+        ray.wait(list(pending), num_returns=len(pending), timeout=60)
+        raise
+    summary["seconds"] = {k: sum(v) for k, v in by_kind.items()}
+    if failures:
+        raise PipelineError("; ".join(failures) + "\nfix it and re-run: finished steps are skipped")
+    return summary
+
+
+def _reason(error: Exception) -> str:
+    """A failed task's message: the step's own error (a PipelineError), or how Ray lost it."""
+    cause = getattr(error, "cause", None)
+    if isinstance(cause, PipelineError):
+        return str(cause)
+    return f"failed in Ray (a lost worker or node is retried {MAX_RETRIES} times): {type(error).__name__}: {error}"
+
+
+def _errored(ray, ref) -> bool:
+    """Whether a finished task's result is an error (False while it runs)."""
+    try:
+        ray.get(ref, timeout=0)
+    except ray.exceptions.GetTimeoutError:
+        return False
+    except Exception:  # noqa: BLE001
+        return True
+    return False
+
+
+def _running_line(todo, pending, needs, finished, by_label, by_kind, prior, slots: int, t_start: float) -> str:
+    """The periodic line: the steps whose needs have all finished (running, or waiting for a free node),
+    with how far each has got (a training: its stages' steps), and the ETA of the rest."""
+    now, parts, waiting = time.time(), [], 0
+    for i in pending:
+        if not all(n in finished for n in needs[i]):
+            waiting += 1
+            continue
+        step, how_far = todo[i], ""
+        if step.progress is not None:
+            try:
+                how_far = f" ({step.progress() or 'starting'})"
+            except (OSError, ValueError, KeyError):  # a record half-written: the next line will have it
+                pass
+        parts.append(f"{step.task}: {step.label}{how_far}")
+    left = eta([todo[i] for i in pending], by_label, by_kind, prior)
+    return (f"under way or ready  {'; '.join(parts)}  (elapsed {hms(now - t_start)}, {waiting} waiting for "
+            f"other steps{', ETA ' + hms(left / slots) if left is not None else ''})")
