@@ -102,11 +102,19 @@ def row_label(r: dict) -> str:
     its evaluation's name; a run's own retrieval (SPE, N = 0) and a one-pass method read as such."""
     name = r.get("name", "eval")
     cfg = r.get("eval_config", {})
+    run = r["_run_name"] + suite_mark(r)
     if cfg.get("N") == 0 and cfg.get("retrieval") == "spe":
-        return f"{r['_run_name']}: retrieval only (N=0)"
+        return f"{run}: retrieval only (N=0)"
     if name == "direct":  # a one-pass method without retrieval (Deterministic)
-        return r["_run_name"]
-    return f"{r['_run_name']}: {name}"
+        return run
+    return f"{run}: {name}"
+
+
+def suite_mark(r: dict) -> str:
+    """" [suite k]" for a result of another suite version than the current tasks' (an older, easier
+    benchmark: its rows never mix with the current suite's), "" otherwise."""
+    suite = tasks.suite_of(r)
+    return "" if suite == tasks.SUITE_VERSION else f" [suite {suite}]"
 
 
 def natural_key(text: str) -> tuple:
@@ -114,3 +122,12 @@ def natural_key(text: str) -> tuple:
     the evaluation name with numbers by value (cheat3 before cheat10, N10 before N100)."""
     run, _, name = text.partition(":")
     return run, [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", name)]
+
+
+def suite_note(suite: int) -> str:
+    """What a table's suite version is, in one line (the current suite, or an older, easier one)."""
+    what = tasks.SUITES.get(suite, "unknown")
+    if suite == tasks.SUITE_VERSION:
+        return f"Suite {suite}, the current tasks: {what}."
+    return (f"**Suite {suite}: an earlier, easier version of the tasks** ({what}); its numbers are not comparable "
+            f"with suite {tasks.SUITE_VERSION}'s.")

@@ -9,6 +9,7 @@ import pytest
 
 from experiments import _cli
 from experiments import report as report_cli
+from readjax import tasks
 from readjax.lab import claims
 from readjax.config import preset
 
@@ -24,7 +25,7 @@ def _result(task, run, method, success, n=100, rank=None, noise=0.0, brightness=
     name = name or f"{method}_{n}_{rank}_{noise}_{brightness}_{rounds}"
     return {"task": task, "method": method, "name": name, "_run_name": run, "_file": f"{task}/{run}/{name}.json",
             "seeds": list(range(len(success))), "success": list(success), "success_rate": sum(success) / len(success),
-            "episodes": len(success), "eval_config": cfg,
+            "episodes": len(success), "eval_config": cfg, "suite": tasks.SUITE_VERSION,
             "configs": {"sde": {"update": "cold", "rounds": 1}} if read else {"resnet": {}}}
 
 

@@ -28,7 +28,7 @@ def _write(root, task, run, name, success, method="read", **eval_config):
            "rounds": sde.rounds, "refine_update": sde.update, **eval_config}
     (d / f"{name}.json").write_text(json.dumps({
         "task": task, "method": method, "name": name, "success_rate": sum(success) / len(success),
-        "episodes": len(success), "test_fingerprint": f"fp-{task}",
+        "episodes": len(success), "test_fingerprint": f"fp-{task}", "suite": tasks.SUITE_VERSION,
         "seeds": list(range(len(success))), "success": success, "eval_config": cfg,
         "configs": {"sde": {"update": "cold", "rounds": 1}}}))  # trained under an older preset
 

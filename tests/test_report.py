@@ -4,16 +4,21 @@ import json
 
 from experiments import _cli
 from experiments import report as report_cli
+from readjax import tasks
 from readjax.lab import cost_table, report
+from readjax.lab.paired import paired_outcomes
+from readjax.lab.report import collect, write_report
 
 
-def _write(root, task, run, name, rate, **cfg):
+def _write(root, task, run, name, rate, suite=tasks.SUITE_VERSION, **cfg):
     d = root / task / run / "eval"
     d.mkdir(parents=True, exist_ok=True)
     eval_config = {"N": 10, "retrieval": "spe", "rank": 1, "image_noise": 0.0, "brightness": 1.0, **cfg}
-    (d / f"{name}.json").write_text(json.dumps({
-        "task": task, "name": name, "success_rate": rate, "seeds": [1, 2], "eval_config": eval_config,
-        "versions": {"jax": "x"}}))
+    record = {"task": task, "name": name, "success_rate": rate, "seeds": [1, 2], "eval_config": eval_config,
+              "versions": {"jax": "x"}}
+    if suite is not None:  # None: a result written before suite versions (suite 1)
+        record["suite"] = suite
+    (d / f"{name}.json").write_text(json.dumps(record))
 
 
 def test_report_groups_protocols_and_excludes(tmp_path, capsys):
@@ -181,3 +186,17 @@ def test_where_refinement_started_table(tmp_path):
     assert "| read_a: spe_N10 | 1 / 2 | 1 / 1 | 0 / 1 |" in section
     assert "| read_b: spe_N10 | 1 / 4 | – | – |" in section
     assert "det" not in section
+
+
+def test_results_of_an_older_suite_are_marked_and_never_paired_with_the_current(tmp_path):
+    """Suite 1 (written before versions) and the current suite ran the same seeds on other scenes: their
+    rows are labelled apart and a comparison between them pairs no episode."""
+    runs = tmp_path / "runs"
+    _write(runs, "reach_target", "read", "spe_N10", 0.5, suite=None)
+    _write(runs, "reach_target", "read2", "spe_N10", 1.0)
+    text = write_report(runs, tmp_path / "r.md", compare=("read2: spe_N10",))
+    assert "| read [suite 1]: spe_N10 |" in text and "| read2: spe_N10 |" in text
+    old = [r for r in collect(runs) if r["_run_name"] == "read"][0]
+    new = [r for r in collect(runs) if r["_run_name"] == "read2"][0]
+    old["success"], new["success"] = [1, 0], [1, 1]
+    assert paired_outcomes(old, new) is None and paired_outcomes(new, new) is not None

@@ -26,6 +26,7 @@ from readjax.config import preset
 from readjax.lab.paired import counts, paired_outcomes
 from readjax.lab.result_record import eval_config_of, is_eval, protocol, training_stops
 from readjax.stage_folder import LOSS_CURVE
+from readjax.tables import suite_note
 
 ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l", "read_o_em")
 # each role is played by one method's evaluations; a role named apart from its method is a second run
@@ -220,17 +221,18 @@ def plot_claims(rows: list[dict], path: Path) -> bool:
 
 
 def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu",
-          doc_dir: Path | None = None, plot: Path | None = None) -> list[str]:
+          doc_dir: Path | None = None, plot: Path | None = None, suite: int = tasks.SUITE_VERSION) -> list[str]:
     """The claims section of the report (markdown lines); READ refined as preset ``preset_name`` does
     (as the main table); with ``plot``, the picture of :func:`plot_claims` there (beside the report);
     then how each named run trained (:func:`training_lines`, links relative to ``doc_dir``)."""
     unknown = sorted(set(runs) - set(ROLES))
     if unknown:
         raise ValueError(f"--claims: unknown role(s) {', '.join(unknown)}; roles are {', '.join(ROLES)}")
+    results = [r for r in results if tasks.suite_of(r) == suite]
     sde = preset(preset_name)["sde"]
     rows = evaluate_claims(results, runs, (sde.update, sde.rounds))
     named = ", ".join(f"{role} = `{run}`" for role, run in runs.items())
-    out = ["## The paper's claims, tested", "",
+    out = [f"## The paper's claims, tested, suite {suite}", "", suite_note(suite), "",
            f"Runs: {named}. Each claim pairs two evaluations on the same test episodes (READ at N = {TOP_N} "
            f"with the {preset_name} preset's refinement, {sde.update} x {sde.rounds} rounds, as in the main table; "
            "SPE top-1 unless an oracle rank is named); per task: episodes only the "

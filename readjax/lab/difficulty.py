@@ -119,6 +119,10 @@ def load_records(results, suite: int = tasks.SUITE_VERSION) -> dict[str, dict]:
     return out
 
 
+def _paper(i: int, code: str) -> str:
+    return str(paper.CHEAT[i][code]) if i in paper.CHEAT else "–"
+
+
 def table(records: dict[str, dict], ranks=RANKS) -> str:
     """The difficulty table in markdown: per task ours beside the paper's Cheat row, i = 1 / 3 / 10,
     the i = 1 difference and whether it lies within ``TOLERANCE``; then the Avg12 / Avg16 rows."""
@@ -130,19 +134,20 @@ def table(records: dict[str, dict], ranks=RANKS) -> str:
         r = next((v for v in records.values() if v["code"] == code), None)
         if r is None:
             lines.append(f"| {code} | " + " | ".join("–" for _ in ranks) + " | "
-                         + " | ".join(f"{paper.CHEAT[i][code]}" for i in ranks) + " | – | – |")
+                         + " | ".join(_paper(i, code) for i in ranks) + " | – | – |")
             continue
         for i in ranks:
             ours[i][code] = 100.0 * r["ranks"][str(i)]["success_rate"]
         diff = ours[1][code] - paper.CHEAT[1][code] if 1 in ranks else float("nan")
         mark = "" if r.get("replay_verified") else " ‡"
         lines.append(f"| {code}{mark} | " + " | ".join(f"{ours[i][code]:.0f}" for i in ranks) + " | "
-                     + " | ".join(f"{paper.CHEAT[i][code]}" for i in ranks)
+                     + " | ".join(_paper(i, code) for i in ranks)
                      + f" | {diff:+.0f} | {'yes' if abs(diff) <= TOLERANCE else '**no**'} |")
     for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
         if all(c in ours[ranks[0]] for c in codes):
             mine = " | ".join(f"{np.mean([ours[i][c] for c in codes]):.1f}" for i in ranks)
-            theirs = " | ".join(f"{paper.CHEAT_AVERAGES[i][name]}" for i in ranks)
+            theirs = " | ".join(str(paper.CHEAT_AVERAGES[i][name]) if i in paper.CHEAT_AVERAGES else "–"
+                                for i in ranks)
             lines.append(f"| {name} | {mine} | {theirs} | | |")
     within = sum(abs(ours[1][c] - paper.CHEAT[1][c]) <= TOLERANCE for c in ours[1]) if 1 in ranks else 0
     lines.append("")

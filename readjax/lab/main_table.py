@@ -21,7 +21,7 @@ from readjax.lab import paper
 from readjax.config import preset
 from readjax.lab.paired import discordant
 from readjax.lab.result_record import is_direct_eval, is_spe_eval, training_stops
-from readjax.tables import success_chart
+from readjax.tables import success_chart, suite_note
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
 
@@ -81,9 +81,11 @@ def _with_averages(table: dict[str, float], measured: list[str]) -> dict[str, fl
 
 
 def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None = None,
-          preset_name: str = "cpu") -> list[str]:
+          preset_name: str = "cpu", suite: int = tasks.SUITE_VERSION) -> list[str]:
     """The main table section of the report (markdown lines); ``chart``: where to draw its bars;
-    READ's cells are evaluations with the refinement of preset ``preset_name``."""
+    READ's cells are evaluations with the refinement of preset ``preset_name``, every cell one on a
+    test split of suite version ``suite`` (the same seed is another scene in another suite)."""
+    results = [r for r in results if tasks.suite_of(r) == suite]
     refinement = refinement_of(preset_name)
     rows, notes = select(results, read_run, det_run, refinement)
     if not any(rows.values()):
@@ -96,7 +98,7 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
     cols = list(tasks.AVG16) + avg_cols
     labels = {READ_ROW: f"READ (N=100): `{read_run}`", RETRIEVAL_ROW: f"retrieval only (N=0): `{read_run}`",
               DET_ROW: f"Deterministic: `{det_run}`", paper.READ_LABEL: paper.READ_LABEL}
-    out = ["## Main table (the paper's layout)", "",
+    out = [f"## Main table (the paper's layout), suite {suite}", "", suite_note(suite), "",
            f"READ is run `{read_run}` on each task at N = 100 with the {preset_name} preset's refinement "
            f"(`sde.update={refinement[0]}`, `sde.rounds={refinement[1]}`), on clean test images "
            f"with SPE top-1 retrieval; retrieval only is the same run at N = 0; Deterministic is run `{det_run}`. "

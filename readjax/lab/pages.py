@@ -21,6 +21,7 @@ from readjax.lab.report import write_report
 RESULTS = "results"
 # the runs each page reports (committed under results/<task>/<run>/)
 MAIN_RUNS = ("read_v3_5k", "deterministic_v3_5k")  # the main table of suite 1
+MAIN_SUITE = 1
 BASELINE_ROLES = {"read": "read_v3_5k_rep", "deterministic": "deterministic_conv", "vpsde": "vpsde_conv",
                   "vpsde_cg": "vpsde_cg_conv", "read_o": "read_o_cd_conv", "read_l": "read_l_conv",
                   "read_o_em": "read_o_em_conv"}
@@ -43,9 +44,9 @@ def results_page() -> str:
     roles = {**{r: r for r in claims.ROLES}, "read": read_run, "deterministic": det_run}
 
     def main(results, chart):
-        return (main_table.lines(results, read_run, det_run, chart, preset_name="cpu")
+        return (main_table.lines(results, read_run, det_run, chart, preset_name="cpu", suite=MAIN_SUITE)
                 + claims.lines(results, roles, preset_name="cpu", doc_dir=out.parent,
-                               plot=out.with_name(out.stem + "_claims.png")))
+                               plot=out.with_name(out.stem + "_claims.png"), suite=MAIN_SUITE))
 
     return write_report(RESULTS, out, main=main, compare=(f"{read_run}: retrieval only (N=0)", det_run))
 
@@ -58,7 +59,7 @@ def baselines_page() -> str:
     return write_report(RESULTS, out, include=(BASELINE_ROLES["read"], "*_conv", "read_kin", "table7"),
                         compare=(f"{BASELINE_ROLES['read']}: retrieval only (N=0)",),
                         main=lambda results, chart: claims.lines(results, roles, preset_name="cpu",
-                                                                 doc_dir=out.parent, plot=plot))
+                                                                 doc_dir=out.parent, plot=plot, suite=1))
 
 
 def difficulty_page() -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import binomtest
 
+from readjax import tasks
 from readjax.lab.result_record import by_seed
 
 
@@ -34,7 +35,9 @@ def sign_test_p(n_plus: int, n_minus: int) -> float:
 
 def paired_outcomes(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray] | None:
     """Two results' successes (bool arrays) on the episodes both ran, matched by seed; None when
-    they share no episode."""
+    they share no episode. Results of two suite versions share none: the same seed is another scene."""
+    if tasks.suite_of(a) != tasks.suite_of(b):
+        return None
     x, y = by_seed(a), by_seed(b)
     common = sorted(set(x) & set(y))
     if not common:

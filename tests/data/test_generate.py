@@ -10,6 +10,7 @@ import pytest
 from experiments import _cli
 from experiments import generate as generate_cli
 from readjax.data import store
+from readjax.tasks import SUITE_VERSION
 from readjax.data.generate import GenerateConfig, generate
 
 pytestmark = pytest.mark.timeout(600)
@@ -89,7 +90,7 @@ def test_cli_errors(tmp_path, capsys):
     # an existing dataset of another task in the output folder is not touched
     path = tmp_path / "reach_target" / "train"
     store.write_meta(path, {"task": "push_button", "split": "train", "image_size": 32, "camera_name": "front",
-                            "format_version": store.FORMAT_VERSION})
+                            "format_version": store.FORMAT_VERSION, "suite": SUITE_VERSION})
     before = (path / "meta.json").read_text()
     assert _cli.run(generate_cli.main, ["--task", "RT", "--episodes", "2", "--batch-size", "2",
                                         "--image-size", "32", "--out", str(tmp_path), "--quiet"]) == 2

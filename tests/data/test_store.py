@@ -8,6 +8,7 @@ import pytest
 from readjax.data import store
 from readjax.sim.camera import CameraParams
 from readjax.sim.env import Scene
+from readjax.tasks import SUITE_VERSION
 
 SIZE = 8
 
@@ -35,7 +36,8 @@ def _episodes(seeds, rng) -> dict:
 
 def _write_split(path, shard_seeds, rng) -> list[dict]:
     store.write_meta(path, {"task": "reach_target", "split": "test", "image_size": SIZE,
-                            "camera": _camera().to_dict(), "format_version": store.FORMAT_VERSION})
+                            "camera": _camera().to_dict(), "format_version": store.FORMAT_VERSION,
+                            "suite": SUITE_VERSION})
     written = []
     for i, seeds in enumerate(shard_seeds):
         ep = _episodes(seeds, rng)

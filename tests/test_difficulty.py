@@ -1,0 +1,82 @@
+"""The oracle rows (experiments.difficulty) and the suite version of a dataset: a split's nearest
+demonstration to itself is its own ground truth, a split without a 100 % replay is not measured, and
+a split of another suite is refused."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from experiments import _cli
+from experiments import difficulty as difficulty_cli
+from readjax import tasks
+from readjax.data import store
+from readjax.data.generate import GenerateConfig, generate
+from readjax.lab import difficulty, verification
+
+pytestmark = pytest.mark.timeout(900)
+
+TASK = "reach_target"
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """A 6-episode test split, and a root whose training split is that same split."""
+    root = tmp_path_factory.mktemp("difficulty")
+    generate(GenerateConfig(task=TASK, split="test", episodes=6, out=str(root / "data"), batch_size=2,
+                            image_size=32), progress=False)
+    mirror = root / "mirror" / TASK
+    mirror.mkdir(parents=True)
+    shutil.copytree(root / "data" / TASK / "test", mirror / "test")
+    shutil.copytree(root / "data" / TASK / "test", mirror / "train")
+    meta = json.loads((mirror / "train" / "meta.json").read_text())
+    (mirror / "train" / "meta.json").write_text(json.dumps(dict(meta, split="train")))
+    return root
+
+
+def test_a_split_against_itself_replays_its_own_ground_truth(data, tmp_path, capsys):
+    results = tmp_path / "results"
+    args = ["--task", "RT", "--data", str(data / "mirror"), "--results", str(results), "--train-episodes", "6",
+            "--episodes", "6", "--ranks", "1", "2", "--image-size", "32", "--batch-size", "2"]
+    assert _cli.run(difficulty_cli.main, args) == 0
+    out = capsys.readouterr().out
+    records = difficulty.load_records(results)
+    r = records[TASK]
+    test = store.load_dataset(store.split_dir(data / "mirror", TASK, "test"))
+    assert r["test_fingerprint"] == test.fingerprint and r["suite"] == tasks.SUITE_VERSION
+    # the nearest demonstration of each episode is its own (same seed), executed at 100 %
+    assert r["ranks"]["1"]["neighbour_seeds"] == r["seeds"] and r["ranks"]["1"]["success_rate"] == 1.0
+    assert all(a != b for a, b in zip(r["ranks"]["2"]["neighbour_seeds"], r["seeds"]))
+    assert r["replay_verified"] and r["paper_cheat"] == {"1": 96}  # RT's Cheat (i = 1) in Table 5
+    assert r["generation"]["test"]["episodes_kept"] == 6
+    assert (results / TASK / "difficulty" / f"{test.fingerprint}.json").exists()
+    assert "| RT | 100 | " in out  # the table, beside the paper's row
+    # a second call measures nothing: the record of this split exists
+    assert _cli.run(difficulty_cli.main, args) == 0
+    assert "record exists" in capsys.readouterr().out
+
+
+def test_no_measurement_without_a_full_replay_on_record(data, tmp_path):
+    with pytest.raises(store.DatasetError, match="no 100 % ground-truth replay"):
+        difficulty.measure(TASK, data / "mirror", tmp_path / "empty_results", ranks=(1,), episodes=6)
+    test = store.load_dataset(store.split_dir(data / "mirror", TASK, "test"))
+    verification.write(tmp_path / "bad", {"task": TASK, "split": "test", "dataset_fingerprint": test.fingerprint,
+                                          "episodes": 6, "success_rate": 5 / 6})
+    with pytest.raises(store.DatasetError, match="no 100 % ground-truth replay"):
+        difficulty.measure(TASK, data / "mirror", tmp_path / "bad", ranks=(1,), episodes=6)
+
+
+def test_a_split_of_another_suite_is_refused_with_the_command_that_regenerates_it(data, tmp_path):
+    old = tmp_path / "old" / TASK / "test"
+    shutil.copytree(data / "data" / TASK / "test", old)
+    meta = json.loads((old / "meta.json").read_text())
+    meta.pop("suite")  # written before suite versions: suite 1
+    (old / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(store.DatasetError, match=r"suite 1 of the tasks .* this readjax's tasks are suite "
+                                                 rf"{tasks.SUITE_VERSION} .*python -m experiments.generate"):
+        store.load_dataset(old)
+    with pytest.raises(store.DatasetError, match="suite 1"):  # nor is it extended
+        generate(GenerateConfig(task=TASK, split="test", episodes=8, out=str(tmp_path / "old"), batch_size=2,
+                                image_size=32), progress=False)
