@@ -1,5 +1,6 @@
-"""The generated pages: every table page under docs/ (and results/README.md) is built from results/
-only, by one function here, so a page cannot drift from what results/ says.
+"""The generated pages: every table page under docs/ (and results/README.md, and the result tables of
+README.md, :mod:`readjax.lab.readme_tables`) is built from results/ only, by one function here, so a page
+cannot drift from what results/ says.
 
 ``regenerate(root)`` rebuilds each page under a repository root (``experiments.report --pages``);
 ``tests/test_pages.py`` rebuilds them in a copy of the repository and fails on any difference from the
@@ -15,13 +16,15 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from readjax import tasks
-from readjax.lab import claims, difficulty, main_table
+from readjax.lab import claims, difficulty, main_table, readme_tables
 from readjax.lab.report import write_report
+from readjax.tables import suite_mark
 
 RESULTS = "results"
 # the runs each page reports (committed under results/<task>/<run>/)
 MAIN_RUNS = ("read_v3_5k", "deterministic_v3_5k")  # the main table of suite 1
 MAIN_SUITE = 1
+MARK = suite_mark({"suite": MAIN_SUITE})  # how the tables' row labels mark the pages' suite (" [suite 1]")
 BASELINE_ROLES = {"read": "read_v3_5k_rep", "deterministic": "deterministic_conv", "vpsde": "vpsde_conv",
                   "vpsde_cg": "vpsde_cg_conv", "read_o": "read_o_cd_conv", "read_l": "read_l_conv",
                   "read_o_em": "read_o_em_conv"}
@@ -48,7 +51,8 @@ def results_page() -> str:
                 + claims.lines(results, roles, preset_name="cpu", doc_dir=out.parent,
                                plot=out.with_name(out.stem + "_claims.png"), suite=MAIN_SUITE))
 
-    return write_report(RESULTS, out, main=main, compare=(f"{read_run}: retrieval only (N=0)", det_run))
+    return write_report(RESULTS, out, main=main, compare=(f"{read_run}{MARK}: retrieval only (N=0)",
+                                                           det_run + MARK))
 
 
 def baselines_page() -> str:
@@ -57,9 +61,9 @@ def baselines_page() -> str:
     plot = out.with_name(out.stem + "_claims.png")
     roles = {**{r: r for r in claims.ROLES}, **BASELINE_ROLES}
     return write_report(RESULTS, out, include=(BASELINE_ROLES["read"], "*_conv", "read_kin", "table7"),
-                        compare=(f"{BASELINE_ROLES['read']}: retrieval only (N=0)",),
+                        compare=(f"{BASELINE_ROLES['read']}{MARK}: retrieval only (N=0)",),
                         main=lambda results, chart: claims.lines(results, roles, preset_name="cpu",
-                                                                 doc_dir=out.parent, plot=plot, suite=1))
+                                                                 doc_dir=out.parent, plot=plot, suite=MAIN_SUITE))
 
 
 def difficulty_page() -> str:
@@ -122,7 +126,13 @@ def results_readme() -> str:
     return text
 
 
+def readme_page() -> str:
+    """README.md's generated blocks (the compact main table, the baselines); the rest of it is written by hand."""
+    return readme_tables.readme(Path("README.md"), RESULTS, MAIN_RUNS, BASELINE_ROLES, MAIN_SUITE)
+
+
 PAGES = {
+    "README.md": readme_page,
     "docs/results.md": results_page,
     "docs/baselines.md": baselines_page,
     "docs/difficulty.md": difficulty_page,

@@ -46,8 +46,7 @@ def sample_features(features: jax.Array, uv: jax.Array) -> jax.Array:
     uv in [-1, 1] follows :mod:`readjax.camera`: u = 2 u_px / W - 1 with pixel i covering
     [i, i + 1), so pixel centres sit at u_px = i + 0.5 and the map (one vector per pixel) is sampled
     at x = (u + 1) W / 2 - 0.5. Points beyond the outermost pixel centres are clamped to the
-    border. Differentiable in both the features and uv.
-    """
+    border. Differentiable in both the features and uv."""
     if features.ndim != 4:
         raise ValueError(f"features must have shape (B, H, W, C), got {features.shape}")
     if uv.ndim != 3 or uv.shape[-1] != 2 or uv.shape[0] != features.shape[0]:
