@@ -13,6 +13,7 @@ from PIL import Image, ImageDraw
 
 from readjax.data.generate import episode_fn
 from readjax.sim.reference import replay
+from readjax.prng import seed_pure
 from readjax.sim.render import SceneRenderer
 
 
@@ -23,6 +24,20 @@ def first_frame(env, seed: int, size: int = 192) -> np.ndarray:
         r.set_state(scene.qpos, scene.mocap_pos, scene.mocap_quat, env.recolour_ids, scene.rgba)
         rgb, _ = r.render(depth=False)
     return rgb
+
+
+def first_frames(env, seeds, size: int = 192) -> list[np.ndarray]:
+    """RGB (size, size, 3) uint8 first frames of a task for several ``seeds`` (their scenes sampled in
+    one batch: a scene is a function of its seed alone, so each equals ``first_frame(env, seed)``)."""
+    seeds = jnp.asarray(list(seeds), jnp.int32)
+    scenes = jax.jit(jax.vmap(lambda s: env.sample_scene(seed_pure(s))))(seeds)
+    frames = []
+    with SceneRenderer(env.mj_model, size, size) as r:
+        for i in range(len(seeds)):
+            scene = jax.tree.map(lambda x: np.asarray(x)[i], scenes)
+            r.set_state(scene.qpos, scene.mocap_pos, scene.mocap_quat, env.recolour_ids, scene.rgba)
+            frames.append(r.render(depth=False)[0])
+    return frames
 
 
 def expert_video(env, seed: int, size: int = 192, every: int = 2) -> list[np.ndarray]:
