@@ -36,8 +36,10 @@ def test_scene_is_independent_of_batching(task):
         if seed >= EXPERT_SEEDS:
             continue
         for a, b in zip(in_episode, reordered):
-            np.testing.assert_array_equal(a[seed], b[pos], err_msg=f"{task}: seed {seed} at position {seed} "
-                                                                  f"of {EXPERT_SEEDS} vs {pos} of 3")
+            # two programs (the episode's and the sampler's): XLA may round trigonometry differently, so
+            # float32 round-off only; a batch-dependent draw (rbg) gives another scene altogether
+            np.testing.assert_allclose(a[seed], b[pos], rtol=0, atol=1e-6,
+                                       err_msg=f"{task}: seed {seed} at position {seed} of {EXPERT_SEEDS} vs {pos} of 3")
     # one seed on its own (no vmap): the same up to float32 round-off (XLA may fuse trigonometry
     # differently without the batch axis)
     alone = _leaves(jax.jit(env.sample_scene)(jax.random.key(2)))
