@@ -117,6 +117,11 @@ def suite_mark(r: dict) -> str:
     return "" if suite == tasks.SUITE_VERSION else f" [suite {suite}]"
 
 
+def of_suite(results: list[dict], suite: int) -> list[dict]:
+    """The results measured on suite version ``suite`` (tables never mix suites)."""
+    return [r for r in results if tasks.suite_of(r) == suite]
+
+
 def natural_key(text: str) -> tuple:
     """Row order: by run (plain text order, so ``runs/...`` stays before ``runs1k/...``), then by
     the evaluation name with numbers by value (cheat3 before cheat10, N10 before N100)."""

@@ -26,7 +26,7 @@ from readjax.config import preset
 from readjax.lab.paired import counts, paired_outcomes
 from readjax.lab.result_record import eval_config_of, is_eval, protocol, training_stops
 from readjax.stage_folder import LOSS_CURVE
-from readjax.tables import suite_note
+from readjax.tables import of_suite, suite_note
 
 ROLES = ("read", "deterministic", "vpsde", "vpsde_cg", "read_o", "read_l", "read_o_em")
 # each role is played by one method's evaluations; a role named apart from its method is a second run
@@ -228,7 +228,7 @@ def lines(results: list[dict], runs: dict[str, str], preset_name: str = "cpu",
     unknown = sorted(set(runs) - set(ROLES))
     if unknown:
         raise ValueError(f"--claims: unknown role(s) {', '.join(unknown)}; roles are {', '.join(ROLES)}")
-    results = [r for r in results if tasks.suite_of(r) == suite]
+    results = of_suite(results, suite)
     sde = preset(preset_name)["sde"]
     rows = evaluate_claims(results, runs, (sde.update, sde.rounds))
     named = ", ".join(f"{role} = `{run}`" for role, run in runs.items())

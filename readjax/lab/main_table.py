@@ -21,7 +21,7 @@ from readjax.lab import paper
 from readjax.config import preset
 from readjax.lab.paired import discordant
 from readjax.lab.result_record import is_direct_eval, is_spe_eval, training_stops
-from readjax.tables import success_chart, suite_note
+from readjax.tables import of_suite, success_chart, suite_note
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
 
@@ -85,7 +85,7 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
     """The main table section of the report (markdown lines); ``chart``: where to draw its bars;
     READ's cells are evaluations with the refinement of preset ``preset_name``, every cell one on a
     test split of suite version ``suite`` (the same seed is another scene in another suite)."""
-    results = [r for r in results if tasks.suite_of(r) == suite]
+    results = of_suite(results, suite)
     refinement = refinement_of(preset_name)
     rows, notes = select(results, read_run, det_run, refinement)
     if not any(rows.values()):

@@ -21,7 +21,7 @@ from readjax import tasks
 from readjax.lab import claims, main_table, paper
 from readjax.lab.replicates import across_trainings
 from readjax.lab.report import collect
-from readjax.tables import row_label, success_table
+from readjax.tables import of_suite, row_label, success_table
 
 END = "<!-- end generated -->"
 MAIN_BLOCK = "<!-- generated: main table (python -m experiments.report --pages) -->"
@@ -32,7 +32,7 @@ BASELINE_ROWS = {"deterministic": "Deterministic", "vpsde": "VPSDE", "vpsde_cg":
 
 
 def _suite_results(results: list[dict], suite: int) -> list[dict]:
-    return [r for r in results if tasks.suite_of(r) == suite and not r.get("_sweep_cell")]
+    return [r for r in of_suite(results, suite) if not r.get("_sweep_cell")]
 
 
 def _suite_line(suite: int, results: list[dict]) -> str:
