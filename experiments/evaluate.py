@@ -1,15 +1,24 @@
 """Evaluate a trained run: plan for the fixed test episodes, execute every plan in MJX (batched)
 with the paper's protocol, and print the success table.
 
-Writes RUN/eval/<name>.json (per-episode success, rates, config, seeds, versions), an overlay of
-retrieved / planned / ground-truth motions on the input images (<name>_overlay.png) and a video of
-a few executed rollouts (<name>_rollouts.mp4). The test split (DATA/<task>/test) is generated
-first if it is missing.
+Writes RUN/eval/<name>.json (per-episode success, rates, config, seeds, versions, "split": "test"),
+an overlay of retrieved / planned / ground-truth motions on the input images (<name>_overlay.png)
+and a video of a few executed rollouts (<name>_rollouts.mp4). The split (DATA/<task>/test) is
+generated first if it is missing.
+
+--split val evaluates the validation episodes instead (DATA/<task>/val, seeds from 2,000,000, disjoint
+from the training and test seeds; generated first if missing): the place to choose settings. Its
+record ("split": "val") goes to RUN/val/<name>.json, never to RUN/eval/, so no table, report or
+pipeline check of finished evaluations counts it. --choice FILE refines with the setting that
+experiments.choose picked on the validation split (its --rounds, --refine, --candidates) and names
+the file in the record ("chosen_on": "val").
 
 examples:
   python -m experiments.evaluate --run runs/reach_target/read --episodes 100
   python -m experiments.evaluate --run runs/RT/read --no-refine                 # N = 0
   python -m experiments.evaluate --run runs/RT/read --retrieval cheat --rank 3 --N 10
+  python -m experiments.evaluate --run runs/RT/read --split val --rounds 1 --refine renoise   # a candidate
+  python -m experiments.evaluate --run runs/RT/read --choice results/reach_target/read/choice.json
 """
 
 from __future__ import annotations
@@ -26,7 +35,14 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.evaluate", description=__doc__,
                                 formatter_class=_cli.HelpFormatter)
     p.add_argument("--run", required=True, help="a run folder from experiments.train")
-    p.add_argument("--episodes", type=_cli.positive_int, default=100, help="test episodes (fixed seeds)")
+    p.add_argument("--episodes", type=_cli.positive_int, default=100, help="episodes of the split (fixed seeds)")
+    p.add_argument("--split", default="test", choices=("test", "val"),
+                   help="the episodes evaluated: test (what tables report; record in RUN/eval/) or val, the "
+                        "validation split to choose settings on (record in RUN/val/, which no table reads)")
+    p.add_argument("--choice", default=None, metavar="FILE",
+                   help="a choice file of experiments.choose (RESULTS/<task>/<run>/choice.json): refine with the "
+                        "setting it chose on the validation split (instead of --rounds / --refine / "
+                        "--candidates); the record names it (\"chosen_on\": \"val\")")
     p.add_argument("--N", type=int, default=None, help=f"refinement steps (default: {DEFAULT_N})")
     p.add_argument("--no-refine", action="store_true", help="execute the retrieved motion (N = 0)")
     p.add_argument("--refine", default=None, choices=REFINE_UPDATES,
@@ -49,8 +65,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--videos", type=int, default=4, help="rollouts rendered to the MP4 (0: none)")
     p.add_argument("--name", default=None, help="result name (default from the options)")
     p.add_argument("--out", default=None, help="folder for the JSON, overlay and video (default: RUN/eval, which "
-                                               "experiments.report reads; another folder keeps e.g. a few "
-                                               "episodes rendered for show out of the tables)")
+                                               "experiments.report reads, or RUN/val with --split val; another "
+                                               "folder keeps e.g. a few episodes rendered for show out of the "
+                                               "tables)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quiet", action="store_true")
     return p
@@ -84,6 +101,37 @@ def default_name(args, uses_retrieval: bool = True, iterative: bool = True, defa
     return "_".join(parts)
 
 
+def output_folder(run, split: str, out: str | None) -> Path:
+    """Where an evaluation's JSON and pictures go: ``out``, else RUN/eval (the test split) or RUN/val
+    (the validation split). A validation evaluation is refused in RUN/eval, which the tables read."""
+    folder = Path(out) if out else Path(run) / ("eval" if split == "test" else "val")
+    if split != "test" and folder.resolve() == (Path(run) / "eval").resolve():
+        raise ValueError(f"--split {split}: its record may not go to {folder}, which the tables read as test "
+                         f"results; leave --out out (RUN/val)")
+    return folder
+
+
+def apply_choice(args, spec: dict) -> dict:
+    """Set ``args``' refinement from the choice file ``args.choice``; returns the fields that name the
+    choice in the record. Refused where the file is no choice, is another run's, or other
+    refinement options are given too."""
+    from readjax.lab import choice as choice_lib
+
+    c = choice_lib.load(args.choice)
+    if c is None:
+        raise FileNotFoundError(f"--choice {args.choice}: no choice file there (experiments.choose writes one)")
+    if (c.get("task"), c.get("run")) != (spec["task"], Path(args.run).name):
+        raise ValueError(f"--choice {args.choice} chose for {c.get('task')}/{c.get('run')}, not for this run "
+                         f"({spec['task']}/{Path(args.run).name})")
+    if args.rounds is not None or args.refine is not None or args.candidates != 1:
+        raise ValueError("--choice sets --rounds, --refine and --candidates: give either the choice or those")
+    if args.no_refine or args.N == 0:
+        raise ValueError("--choice sets how to refine; N = 0 refines nothing")
+    setting = choice_lib.chosen_setting(c)
+    args.rounds, args.refine, args.candidates = setting.rounds, setting.refine, setting.candidates
+    return choice_lib.record_of(args.choice, c)
+
+
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
     from readjax.methods.common import check_n_steps
@@ -96,14 +144,16 @@ def main(argv=None) -> None:
     from readjax.planner import Planner
 
     spec = read_run(args.run)
+    out = output_folder(args.run, args.split, args.out)
+    extra = apply_choice(args, spec) if args.choice else {}
     root = args.data or spec["data_root"]
-    test_dir = store.split_dir(root, spec["task"], "test")
+    test_dir = store.split_dir(root, spec["task"], args.split)
     have = store.read_progress(test_dir).kept if test_dir.exists() else 0
     if have < args.episodes:
         train_meta = store.read_meta(store.split_dir(root, spec["task"], "train")) or {}
         size = train_meta.get("image_size", spec["image_size"])
-        print(f"generating the test split ({args.episodes} episodes) in {test_dir}", flush=True)
-        generate(GenerateConfig(task=spec["task"], split="test", episodes=args.episodes, out=str(root),
+        print(f"generating the {args.split} split ({args.episodes} episodes) in {test_dir}", flush=True)
+        generate(GenerateConfig(task=spec["task"], split=args.split, episodes=args.episodes, out=str(root),
                                 image_size=size), progress=not args.quiet)
     test_ds = store.load_dataset(test_dir, limit=args.episodes)
     planner = Planner.load(args.run, data_root=root)
@@ -117,11 +167,11 @@ def main(argv=None) -> None:
         model.set_refine_update(args.refine)  # a method without an update says so
     name = args.name or default_name(args, model.uses_retrieval, model.iterative, planner.n_steps,
                                      evaluation.refine_update(model), planner.default_rounds)
-    out = Path(args.out) if args.out else Path(args.run) / "eval"
-    result = evaluation.evaluate(planner, test_ds, cfg, out_dir=out, name=name, progress=not args.quiet)
+    result = evaluation.evaluate(planner, test_ds, cfg, out_dir=out, name=name, progress=not args.quiet,
+                                 extra=extra)
     label = f"{result['method']} ({name})"
     print(tables.format_table({label: result["table"]}))
-    print(f"success {100 * result['success_rate']:.1f}% over {result['episodes']} episodes; "
+    print(f"success {100 * result['success_rate']:.1f}% over {result['episodes']} {args.split} episodes; "
           f"results in {out / (name + '.json')}")
 
 

@@ -14,6 +14,17 @@ For each task (in the paper's order), each step runs only if its output is missi
      the evidence of whether retrieval or refinement limits the task;
   7. --protocols: READ's evaluations for the paper's other tables (oracle retrieval, poor retrieval,
      perturbed images).
+With --val-episodes N > 0 (default 100) READ's refinement setting is chosen on a validation split, never
+on the test episodes: the val split (seeds from 2,000,000) is generated and its ground truth replayed at
+100 % (RESULTS/<task>/verify/val_<fingerprint>.json); each READ run (and READ variant) is evaluated on it at
+its largest --read-N once per setting of the choice grid (--choice-rounds x --choice-refine x
+--choice-candidates; records in RUN/val/ and RESULTS/<task>/<run>/val/, which no table reads); the
+setting with the highest val success (ties: the one closest to the paper's rounds 1, renoise,
+candidates 1) is written to RESULTS/<task>/<run>/choice.json (experiments.choose); and every test
+evaluation of that run that refines (N > 0: steps 3, 5, 6, 7) takes it (experiments.evaluate --choice),
+its record saying so ("chosen_on": "val"). A choice on record over the same settings, N and val episodes,
+on a val split whose replay is on record, is not made again. --val-episodes 0: no validation split, READ
+refined with its preset's setting (how the committed grids were evaluated).
 --variant trains a method with its own config overrides in its own run folder (READ-O's two samplers,
 READ with the kinematics-aware autoencoder): a row of its own.
 The steps run on Ray (docs/cluster.md): with no --ray-address (nor RAY_ADDRESS) an embedded Ray on this
@@ -60,7 +71,7 @@ from experiments import _cli
 
 def parser() -> argparse.ArgumentParser:
     from readjax import methods
-    from readjax.config import preset_names
+    from readjax.config import REFINE_UPDATES, preset_names
     from readjax.lab.pipeline_config import PROTOCOL_EVALUATIONS, PipelineConfig
 
     p = argparse.ArgumentParser(prog="python -m experiments.pipeline", description=__doc__,
@@ -78,6 +89,19 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--results", default="results", help="where evaluation JSONs are mirrored (commit them)")
     p.add_argument("--train-episodes", type=_cli.positive_int, default=1000)
     p.add_argument("--test-episodes", type=_cli.positive_int, default=100)
+    p.add_argument("--val-episodes", type=int, default=PipelineConfig.val_episodes,
+                   help="validation episodes (DATA/<task>/val, seeds from 2,000,000) on which each READ run's "
+                        "refinement setting is chosen before its test evaluations use it; 0: no validation, READ "
+                        "refines with its preset's setting. Not the training's held-out demos (--set "
+                        "train.val_episodes)")
+    p.add_argument("--choice-rounds", nargs="+", default=["1", "preset"], metavar="R",
+                   help="the choice grid's --rounds values: positive integers, or 'preset' (the run's sde.rounds)")
+    p.add_argument("--choice-refine", nargs="+", default=["renoise", "preset"], choices=REFINE_UPDATES + ("preset",),
+                   metavar="UPDATE",
+                   help=f"the choice grid's --refine values: {', '.join(REFINE_UPDATES)}, or 'preset' (the run's "
+                        f"sde.update)")
+    p.add_argument("--choice-candidates", nargs="+", type=_cli.positive_int, default=[1], metavar="C",
+                   help="the choice grid's --candidates values (SPE's top C refined; 1: the paper's top-1)")
     p.add_argument("--image-size", type=_cli.positive_int, default=64)
     p.add_argument("--gen-batch", type=_cli.positive_int, default=32, help="episodes simulated together")
     p.add_argument("--read-N", type=int, nargs="+", default=[0, 100], help="READ's refinement steps to evaluate")
@@ -149,7 +173,7 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     from readjax import tasks
     from readjax.lab import pipeline, ray_grid, timing
-    from readjax.lab.pipeline_config import PipelineConfig
+    from readjax.lab.pipeline_config import ChoiceGrid, PipelineConfig
     from readjax.lab.steps import PipelineError
 
     resources = ray_grid.parse_resources(args.resources)
@@ -162,6 +186,12 @@ def main(argv=None) -> int:
     if any(len(v) < 2 for v in args.variant):
         raise ValueError(f"--variant takes LABEL METHOD [KEY=VALUE ...], got {[' '.join(v) for v in args.variant]}")
     variants = tuple((v[0], v[1], tuple(v[2:])) for v in args.variant)
+    bad = [r for r in args.choice_rounds if r != "preset" and not r.isdigit()]
+    if bad:
+        raise ValueError(f"--choice-rounds takes positive integers or 'preset', got {bad}")
+    grid = ChoiceGrid(rounds=tuple(None if r == "preset" else int(r) for r in args.choice_rounds),
+                      refine=tuple(None if u == "preset" else u for u in args.choice_refine),
+                      candidates=tuple(args.choice_candidates))
     cfg = PipelineConfig(
         tasks=names, methods=tuple(args.methods) + tuple(label for label, _, _ in variants), preset=args.preset,
         data=args.data, runs=args.runs,
@@ -169,7 +199,8 @@ def main(argv=None) -> int:
         image_size=args.image_size, gen_batch=args.gen_batch, read_N=tuple(args.read_N),
         overrides=tuple(args.set), run_names=run_names,
         media_episodes=args.media_episodes, diagnose_below=args.diagnose_below, variants=variants,
-        protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness).validate()
+        protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness,
+        val_episodes=args.val_episodes, choice_grid=grid).validate()
     try:
         steps = pipeline.plan_steps(cfg)
     except PipelineError as e:

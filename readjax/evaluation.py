@@ -53,9 +53,12 @@ def perturb_images(rgbd: np.ndarray, cfg: EvalConfig, seed: int, episode_seeds: 
     return out
 
 
-def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval", progress: bool = True) -> dict:
-    """Plan for the test episodes, execute every plan in its stored scene (after the scene guard),
-    write ``out_dir/<name>.json`` (+ an overlay PNG and a rollout MP4) and return the result dict."""
+def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval", progress: bool = True,
+             extra: dict | None = None) -> dict:
+    """Plan for the episodes of ``test_ds`` (the test split, or the validation split: the record names
+    which), execute every plan in its stored scene (after the scene guard), write
+    ``out_dir/<name>.json`` (+ an overlay PNG and a rollout MP4) and return the result dict;
+    ``extra``: fields added to the record (where its refinement setting was chosen)."""
     if cfg.episodes > len(test_ds):
         raise ValueError(f"the test split holds {len(test_ds)} episodes, fewer than --episodes {cfg.episodes}")
     env = planner.env
@@ -87,7 +90,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     gt_pos, gt_rot = (np.asarray(x) for x in motion_lib.decode(planner.camera, jnp.asarray(ds.motion))[:2])
     result = {
         "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
-        "method": planner.spec.get("method", "read"), "name": name,
+        "method": planner.spec.get("method", "read"), "name": name, "split": test_ds.split,
         "success_rate": rate, "table": tables.success_table({planner.task: rate}),
         "episodes": len(ds), "seeds": ds.seeds.tolist(), "scenes": "stored (guard passed)", "success": res["success"].astype(int).tolist(),
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
@@ -97,12 +100,14 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
         "training": stage_folder.stage_records(planner.run_dir),  # per stage: steps and why it stopped
-        # which data: the test split as stored (experiments.verify records the same hash) and the
-        # training set the run learnt from; a table row is only comparable to rows on the same test split
+        # which data: the evaluated split as stored (experiments.verify records the same hash; the field
+        # keeps its name for a val split too, ``split`` says which) and the training set the run learnt
+        # from; a table row is only comparable to rows on the same test split
         "test_fingerprint": test_ds.fingerprint, "train_fingerprint": planner.spec.get("dataset_fingerprint"),
         "suite": tasks.suite_of(test_ds.meta),  # which version of the tasks the episodes belong to
         "seconds": {"planning": round(t_plan, 2), "execution": round(t_exec, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(), "commit": provenance.commit(),
+        **(extra or {}),
     }
     # every failure by mode (unreachable, gripper sequence, wrong place, depth, ..., task failure)
     result["failures"] = failure_modes.diagnose(

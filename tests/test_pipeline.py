@@ -200,6 +200,43 @@ def test_the_papers_loop_is_evaluated_under_its_own_name(run, capsys):
     assert sum(c["succeeded"] for b in by.values() for c in b.values()) == sum(result["success"])
 
 
+def test_a_val_evaluation_goes_to_run_val_and_a_choice_to_the_test_record(run, tmp_path, capsys):
+    """--split val evaluates the validation episodes (seeds from 2,000,000, generated first) into
+    RUN/val/, never RUN/eval/ nor a report; --choice refines a test evaluation with the setting chosen
+    on them, and the record names it."""
+    from readjax.lab import report
+
+    data, run_dir = run
+    argv = ["--run", str(run_dir), "--split", "val", "--episodes", "2", "--N", "1", "--batch-size", "2",
+            "--videos", "0", "--rounds", "1", "--refine", "renoise", "--quiet"]
+    assert _cli.run(evaluate_cli.main, argv) == 0
+    rec = json.loads((run_dir / "val" / "spe_N1.json").read_text())
+    val = store.load_dataset(data / "reach_target" / "val", limit=2)
+    assert rec["split"] == "val" and rec["test_fingerprint"] == val.fingerprint
+    assert min(rec["seeds"]) >= 2_000_000 and rec["episodes"] == 2
+    assert not (run_dir / "eval" / "spe_N1.json").exists()
+    collected = report.collect(run_dir.parent.parent)
+    assert not any(r.get("split") == "val" or "/val/" in r["_file"] for r in collected)
+    choice_file = tmp_path / "choice.json"
+    choice_file.write_text(json.dumps({
+        "task": "reach_target", "run": run_dir.name, "N": 1, "episodes": 2, "val_fingerprint": rec["test_fingerprint"],
+        "chosen": {"rounds": 1, "refine": "renoise", "candidates": 1}, "candidates": []}))
+    shown = tmp_path / "shown"
+    test_argv = ["--run", str(run_dir), "--episodes", "2", "--N", "1", "--batch-size", "2", "--videos", "0",
+                 "--out", str(shown), "--quiet", "--choice", str(choice_file)]
+    assert _cli.run(evaluate_cli.main, test_argv) == 0
+    chosen = json.loads((shown / "spe_N1.json").read_text())
+    assert chosen["split"] == "test" and chosen["chosen_on"] == "val"
+    assert chosen["choice"]["file"] == str(choice_file) and chosen["choice"]["val_fingerprint"] == val.fingerprint
+    assert (chosen["eval_config"]["rounds"], chosen["eval_config"]["refine_update"]) == (1, "renoise")
+    assert max(chosen["seeds"]) < 2_000_000
+    capsys.readouterr()
+    assert _cli.run(evaluate_cli.main, test_argv + ["--rounds", "2"]) == 2
+    assert "--choice sets" in capsys.readouterr().err
+    assert _cli.run(evaluate_cli.main, argv + ["--out", str(run_dir / "eval")]) == 2
+    assert "the tables read" in capsys.readouterr().err
+
+
 def test_goal_shift_on_the_trained_run(run, tmp_path, capsys):
     """The goal-shift diagnostic renders the scenes the test images show (bit for bit up to float
     rounding), plans from the same oracle start on both images, and finds the goal's move in the

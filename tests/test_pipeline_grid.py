@@ -15,22 +15,14 @@ from experiments import pipeline as pipeline_cli
 from readjax import config, methods
 from readjax.lab import cost_table, pipeline, pipeline_config, ray_grid, timing, verification
 from readjax.lab.steps import PipelineError, Step, run_in_order
+from tests.pipeline_fakes import _fingerprint_from_summary  # noqa: F401 (an autouse fixture)
 
 
 def _cfg(tmp_path, **kw):
+    """A grid without the validation split (its steps: tests/test_pipeline_val.py)."""
     base = dict(tasks=("RT", "PB"), data=str(tmp_path / "data"), runs=str(tmp_path / "runs"),
-                results=str(tmp_path / "results"), train_episodes=8, test_episodes=4)
+                results=str(tmp_path / "results"), train_episodes=8, test_episodes=4, val_episodes=0)
     return pipeline_config.PipelineConfig(**{**base, **kw}).validate()
-
-
-@pytest.fixture(autouse=True)
-def _fingerprint_from_summary(monkeypatch):
-    """The fake datasets hold no episodes: a split's content hash is read from its summary.json."""
-    def fingerprint(split_dir, episodes):
-        f = Path(split_dir) / "summary.json"
-        return json.loads(f.read_text())["fingerprint"] if pipeline._summary_kept(split_dir) >= episodes else None
-
-    monkeypatch.setattr(pipeline, "split_fingerprint", fingerprint)
 
 
 REFINING = ("read", "read_o", "read_l")  # methods that run READ's refinement update (sde.update)

@@ -18,6 +18,8 @@ Beyond the main table: ``protocols`` adds READ's evaluations for the paper's oth
 and poor retrieval, perturbed images: ``pipeline_config.PROTOCOL_EVALUATIONS``), and ``variants`` trains a method with its own
 config overrides in a run folder of its own (READ-O's two samplers, READ with the kinematics-aware
 autoencoder), each a row of its own.
+With ``val_episodes`` > 0 each READ run chooses its refinement setting on a validation split (generated
+and replayed like the test split) before its test evaluations use it (``readjax.lab.pipeline_val``).
 This module plans the steps (``plan_steps``); ``readjax.lab.ray_grid`` runs them on Ray, each step a task on
 whichever node has what it asks, after the steps it needs. What the grid is asked (its config, the
 evaluations of each run, the recipe of each label) is ``readjax.lab.pipeline_config``; its records in
@@ -39,6 +41,7 @@ from readjax.lab.pipeline_config import (ORACLE_ABLATIONS, ORACLE_RANKS, EvalReq
                                          eval_requests, label_configs, protocol_requests)
 from readjax.lab.pipeline_results import (check_media, check_recipes, copy_results, copy_training_records,
                                           finished_evaluation)
+from readjax.lab.pipeline_val import ValChoice, plan_choice
 from readjax.lab.steps import Step, train_command
 from readjax.lab.timing import TIMING_FILE
 
@@ -88,30 +91,39 @@ def train_argv(cfg: PipelineConfig, task: str, label: str, python: str) -> list[
                          data=cfg.data, out=cfg.runs, overrides=cfg.overrides_of(label))
 
 
+def split_steps(cfg: PipelineConfig, task: str, split: str, count: int, python: str) -> list[Step]:
+    """Generate ``task``'s ``split`` (``count`` episodes); a test or val split then replays its ground
+    truth, which must succeed 100 % (recorded per version of the split under ``results/``)."""
+    data, results = Path(cfg.data), Path(cfg.results)
+    d = data / task / split
+    gen = Step("generate", task, f"generate {split} {count}", [
+        python, "-m", "experiments.generate", "--task", task, "--split", split, "--episodes", str(count),
+        "--batch-size", str(cfg.gen_batch), "--image-size", str(cfg.image_size), "--out", str(data), "--quiet"],
+        made=lambda: _summary_kept(d) >= count)
+    if split == "train":
+        return [gen]
+    return [gen, Step("verify", task, f"verify {split} (ground truth replay = 100 %)", [
+        python, "-m", "experiments.verify", "--task", task, "--data", str(data), "--split", split,
+        "--episodes", str(count), "--results", str(results), "--min", "100"],
+        made=lambda: verification.is_verified(results, task, split_fingerprint(d, count), count, split=split),
+        needs=[gen])]  # the replay reads the generated split
+
+
 def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
     """The grid's steps in order, each after the steps it ``needs``. A step that only feeds others (generate,
-    verify, train) also counts as done once everything it feeds is: a task whose evaluations and
-    media are all in ``results/`` needs no dataset, replay or checkpoint on this machine. Refused
-    (``check_recipes``) where ``results/`` holds a run of the same name trained another way."""
+    verify, train, a val evaluation, a choice) also counts as done once everything it feeds is: a task whose
+    evaluations and media are all in ``results/`` needs no dataset, replay or checkpoint on this machine.
+    Refused (``check_recipes``) where ``results/`` holds a run of the same name trained another way."""
     check_recipes(cfg)
-    data, runs, results = Path(cfg.data), Path(cfg.runs), Path(cfg.results)
+    runs, results = Path(cfg.runs), Path(cfg.results)
     steps: list[Step] = []
+    validating = any(cfg.chooses(label) for label in cfg.methods)
     for task in cfg.tasks:
-        prepare: list[Step] = []  # the task's datasets and their replay
-        for split, count in (("test", cfg.test_episodes), ("train", cfg.train_episodes)):
-            d = data / task / split
-            prepare.append(Step("generate", task, f"generate {split} {count}", [
-                python, "-m", "experiments.generate", "--task", task, "--split", split, "--episodes", str(count),
-                "--batch-size", str(cfg.gen_batch), "--image-size", str(cfg.image_size), "--out", str(data),
-                "--quiet"], made=lambda d=d, c=count: _summary_kept(d) >= c))
-            if split == "test":
-                prepare.append(Step("verify", task, "verify test (ground truth replay = 100 %)", [
-                    python, "-m", "experiments.verify", "--task", task, "--data", str(data), "--episodes", str(count),
-                    "--results", str(results), "--min", "100"],
-                    made=lambda d=d, c=count, task=task: verification.is_verified(
-                        results, task, split_fingerprint(d, c), c)))
-        prepare[1].needs.append(prepare[0])  # the replay reads the generated test split
-        steps += prepare
+        # the task's datasets and their replay; the val split's, where a READ run chooses on it
+        prepare = (split_steps(cfg, task, "test", cfg.test_episodes, python)
+                   + split_steps(cfg, task, "train", cfg.train_episodes, python))
+        val_prepare = split_steps(cfg, task, "val", cfg.val_episodes, python) if validating else []
+        steps += prepare + val_prepare
         outputs: list[Step] = []  # the task's evaluations and media: what the rest is for
         shared: dict[str, Step] = {}  # label -> the step training that label's autoencoder stage alone
         trains: dict[str, Step] = {}  # label -> its training step
@@ -149,7 +161,9 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                 train.needs.append(shared[label])
             if source is not None:
                 shared[source].users.append(train)
-            uses = [evaluate_step(cfg, task, run, method, request, python, shown=label)
+            val = plan_choice(cfg, task, label, run, python) if cfg.chooses(label) else None
+            chosen = [] if val is None else val.evaluations  # what the choice is made from, on the val split
+            uses = [evaluate_step(cfg, task, run, method, request, python, shown=label, choice=val)
                     for request in eval_requests(method, cfg.read_N)]
             if "oracle" in cfg.protocols and method in ORACLE_ABLATIONS:
                 uses += [evaluate_step(cfg, task, run, method, EvalRequest(None, rank), python, shown=label)
@@ -157,18 +171,20 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
             if label == "read":  # READ itself, not a variant: media, diagnosis and the paper's protocols
                 top = uses[list(cfg.read_N).index(max(cfg.read_N))]  # what media and diagnosis compare with
                 if cfg.media_episodes and max(cfg.read_N) > 0:
-                    uses.append(media_step(cfg, task, run, python))
+                    uses.append(media_step(cfg, task, run, python, choice=val))
                     uses[-1].needs.append(top)
                 protocol = protocol_requests(cfg)
                 if cfg.diagnose_below > 0:
-                    for n, step in zip(cfg.read_N, oracle_steps(cfg, task, run, python)):
+                    for n, step in zip(cfg.read_N, oracle_steps(cfg, task, run, python, choice=val)):
                         if EvalRequest(n, 1) not in protocol:  # the oracle protocol runs it anyway
                             step.needs.append(top)
                             uses.append(step)
-                uses += [evaluate_step(cfg, task, run, method, request, python) for request in protocol]
-            train.users = uses
-            steps += [train] + uses
-            outputs += uses
+                uses += [evaluate_step(cfg, task, run, method, request, python, choice=val) for request in protocol]
+            train.users = chosen + uses
+            steps += [train] + chosen + ([val.step] if val else []) + uses
+            outputs += chosen + uses
+            for step in val_prepare:
+                step.users += chosen
         for step in prepare:
             step.users = outputs
     for s in steps:
@@ -185,48 +201,59 @@ def _trained(marker: Path, run: Path, results: Path) -> None:
 
 
 def evaluate_step(cfg: PipelineConfig, task: str, run: Path, method: str, request: EvalRequest, python: str,
-                  label_suffix: str = "", wanted: Callable[[], bool] = lambda: True, shown: str | None = None) -> Step:
+                  label_suffix: str = "", wanted: Callable[[], bool] = lambda: True, shown: str | None = None,
+                  choice: ValChoice | None = None) -> Step:
     """Evaluate ``run`` (a ``method`` run, labelled ``shown``: a variant's label) as ``request`` asks on
     the task's first ``cfg.test_episodes`` test episodes; done when ``results/`` holds that evaluation
-    on a verified split (copied there after it runs)."""
+    on a verified split (copied there after it runs). ``choice``: the run's refinement chosen on the
+    validation split, which an evaluation that refines takes (and waits for)."""
     results = Path(cfg.results)
+    if choice is not None:
+        request = choice.request(request)
+    chooses = request.choice is not None
     argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", cfg.data,
             "--episodes", str(cfg.test_episodes), "--videos", "0", "--quiet"] + request.argv()
-    return Step("evaluate", task, request.label(shown or method) + label_suffix, argv,
-                made=lambda: finished_evaluation(results, task, run.name, method, request,
-                                                 cfg.test_episodes) is not None,
+    step = Step("evaluate", task, request.label(shown or method) + label_suffix, argv,
+                made=lambda: (not chooses or choice.step.made()) and finished_evaluation(
+                    results, task, run.name, method, request, cfg.test_episodes) is not None,
                 after=lambda: copy_results(run, results), wanted=wanted)
+    if chooses:
+        choice.step.users.append(step)
+    return step
 
 
-def oracle_steps(cfg: PipelineConfig, task: str, run: Path, python: str) -> list[Step]:
+def oracle_steps(cfg: PipelineConfig, task: str, run: Path, python: str,
+                 choice: ValChoice | None = None) -> list[Step]:
     """Where READ at its largest N scores below ``cfg.diagnose_below`` %, READ again at each N from
     the oracle's start (the test episode's own demonstration, Table 4's i = 1): success there and
     not from SPE's start says retrieval limits the task; failure from the right start too says the
     refinement or the execution does. Skipped (``wanted`` false) when READ scores at least that."""
     results, top = Path(cfg.results), max(cfg.read_N)
+    read_top = EvalRequest(top) if choice is None else choice.request(EvalRequest(top))
 
     def weak() -> bool:
-        r = finished_evaluation(results, task, run.name, "read", EvalRequest(top), cfg.test_episodes)
+        r = finished_evaluation(results, task, run.name, "read", read_top, cfg.test_episodes)
         return r is None or 100.0 * r["success_rate"] < cfg.diagnose_below  # not evaluated yet: assume so
 
-    return [evaluate_step(cfg, task, run, "read", EvalRequest(n, 1), python,
+    return [evaluate_step(cfg, task, run, "read", EvalRequest(n, 1), python, choice=choice,
                           label_suffix=f" (READ below {cfg.diagnose_below:g} %)", wanted=weak) for n in cfg.read_N]
 
 
 MEDIA_VIDEOS = 4  # rollouts side by side in a task's video
 
 
-def media_step(cfg: PipelineConfig, task: str, run: Path, python: str) -> Step:
-    """Render READ's first ``media_episodes`` test episodes at its largest N: an evaluation of those
-    episodes alone, written to RUN/media/ (outside RUN/eval/, so no table counts it), then copied
-    to results/<task>/<run>/media/ (the pictures and the rendered evaluation's JSON) with its
-    outcomes checked against the full evaluation's."""
+def media_step(cfg: PipelineConfig, task: str, run: Path, python: str, choice: ValChoice | None = None) -> Step:
+    """Render READ's first ``media_episodes`` test episodes at its largest N (refined as ``choice``
+    chose, where the run chooses): an evaluation of those episodes alone, written to RUN/media/
+    (outside RUN/eval/, so no table counts it), then copied to results/<task>/<run>/media/ (the
+    pictures and the rendered evaluation's JSON) with its outcomes checked against the full
+    evaluation's."""
     n = max(cfg.read_N)
     k = min(cfg.media_episodes, cfg.test_episodes)
     media, dest = run / "media", Path(cfg.results) / task / run.name / "media"
     argv = [python, "-m", "experiments.evaluate", "--run", str(run), "--data", cfg.data, "--episodes", str(k),
             "--batch-size", str(k), "--videos", str(min(MEDIA_VIDEOS, k)), "--N", str(n), "--out", str(media),
-            "--quiet"]
+            "--quiet"] + ([] if choice is None else ["--choice", str(choice.path)])
 
     def publish():
         check_media(media, run / "eval")
@@ -234,5 +261,8 @@ def media_step(cfg: PipelineConfig, task: str, run: Path, python: str) -> Step:
         for f in sorted(media.glob("*_overlay.png")) + sorted(media.glob("*_rollouts.mp4")) + sorted(media.glob("*.json")):
             shutil.copyfile(f, dest / f.name)  # the JSON: which episodes the pictures show, and their outcomes
 
-    return Step("media", task, f"render READ N={n} ({k} episodes: overlay + video)", argv,
+    step = Step("media", task, f"render READ N={n} ({k} episodes: overlay + video)", argv,
                 made=lambda: any(dest.glob("*_rollouts.mp4")), after=publish)
+    if choice is not None:  # its command reads the choice file
+        choice.step.users.append(step)
+    return step

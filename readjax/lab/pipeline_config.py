@@ -1,17 +1,88 @@
 """What a grid of (task x method) work is asked to do: its config (``PipelineConfig``: tasks, methods
-and their variants, the paper's other protocols), the evaluations it asks of each run
-(``EvalRequest``: the main table's, ``eval_requests``; the protocols', ``protocol_requests``) and the
-recipe each of its labels trains with (``label_configs``, ``recipe``). ``readjax.lab.pipeline`` plans
-the steps that carry it out.
+and their variants, the paper's other protocols, the validation split and the refinement settings
+each READ run chooses among on it, ``ChoiceGrid`` of ``RefineSetting``), the evaluations it asks of
+each run (``EvalRequest``: the main table's, ``eval_requests``; the protocols', ``protocol_requests``)
+and the recipe each of its labels trains with (``label_configs``, ``recipe``).
+``readjax.lab.pipeline`` plans the steps that carry it out.
 """
 
 from __future__ import annotations
 
+import itertools
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from readjax import methods, tasks
+from readjax.config import REFINE_UPDATES
 from readjax.lab import result_record
+
+
+@dataclass(frozen=True)
+class RefineSetting:
+    """READ's refinement at inference, as ``experiments.evaluate`` takes it: ``rounds`` refinements in
+    a row, each with the ``refine`` update, from SPE's top ``candidates`` retrievals."""
+    rounds: int
+    refine: str
+    candidates: int = 1
+
+    def __post_init__(self):
+        if isinstance(self.rounds, bool) or not isinstance(self.rounds, int) or self.rounds < 1:
+            raise ValueError(f"a setting's rounds must be a positive integer, got {self.rounds!r}")
+        if self.refine not in REFINE_UPDATES:
+            raise ValueError(f"a setting's refine must be one of {', '.join(REFINE_UPDATES)}, got {self.refine!r}")
+        if isinstance(self.candidates, bool) or not isinstance(self.candidates, int) or self.candidates < 1:
+            raise ValueError(f"a setting's candidates must be a positive integer, got {self.candidates!r}")
+
+    def argv(self) -> list[str]:
+        """Its ``experiments.evaluate`` flags."""
+        return ["--rounds", str(self.rounds), "--refine", self.refine, "--candidates", str(self.candidates)]
+
+    def text(self) -> str:
+        return f"rounds={self.rounds},refine={self.refine},candidates={self.candidates}"
+
+    @classmethod
+    def parse(cls, text: str) -> "RefineSetting":
+        """The inverse of ``text``: ``rounds=R,refine=U[,candidates=C]``."""
+        pairs = dict(kv.split("=", 1) for kv in text.split(",") if "=" in kv)
+        if set(pairs) - {"rounds", "refine", "candidates"} or not {"rounds", "refine"} <= set(pairs) \
+                or len(pairs) != len(text.split(",")):
+            raise ValueError(f"a setting looks like rounds=R,refine=U[,candidates=C], got {text!r}")
+        try:
+            return cls(int(pairs["rounds"]), pairs["refine"], int(pairs.get("candidates", 1)))
+        except ValueError as e:
+            raise ValueError(f"setting {text!r}: {e}") from None
+
+
+PAPER_SETTING = RefineSetting(1, "renoise", 1)  # the paper's single re-noising refinement of SPE's top-1
+
+
+@dataclass(frozen=True)
+class ChoiceGrid:
+    """The refinement settings a READ run is evaluated with on the validation split, one of which it
+    then uses on the test split: every combination of the values below, a value None standing for
+    the run's own (its ``sde.rounds``, its ``sde.update``), duplicates collapsed."""
+    rounds: tuple[int | None, ...] = (1, None)
+    refine: tuple[str | None, ...] = ("renoise", None)
+    candidates: tuple[int, ...] = (1,)
+
+    def settings(self, sde) -> tuple[RefineSetting, ...]:
+        """The grid for a run whose SDE config is ``sde``, in order, without repeats."""
+        combos = itertools.product(self.rounds, self.refine, self.candidates)
+        return tuple(dict.fromkeys(RefineSetting(sde.rounds if r is None else r, sde.update if u is None else u, c)
+                                   for r, u, c in combos))
+
+    def validate(self) -> None:
+        if not (self.rounds and self.refine and self.candidates):
+            raise ValueError("the choice grid needs at least one value of rounds, refine and candidates")
+        for r in self.rounds:
+            if r is not None and (isinstance(r, bool) or not isinstance(r, int) or r < 1):
+                raise ValueError(f"--choice-rounds: a positive integer or 'preset', got {r!r}")
+        for u in self.refine:
+            if u is not None and u not in REFINE_UPDATES:
+                raise ValueError(f"--choice-refine: one of {', '.join(REFINE_UPDATES)} or 'preset', got {u!r}")
+        for c in self.candidates:
+            if isinstance(c, bool) or not isinstance(c, int) or c < 1:
+                raise ValueError(f"--choice-candidates: a positive integer, got {c!r}")
 
 
 @dataclass(frozen=True)
@@ -38,9 +109,17 @@ class PipelineConfig:
     protocols: tuple[str, ...] = ()  # READ's evaluations beyond the main table: keys of PROTOCOL_EVALUATIONS
     noise: float = 0.05  # Table 9's perturbations (the paper does not state its levels): RGB noise std
     brightness: float = 0.7  # and the brightness factor
+    # validation episodes (seeds from 2,000,000): each READ run's refinement setting is chosen on
+    # them, among ``choice_grid``'s, before its test evaluations; 0: no validation (each READ run
+    # is evaluated with its preset's refinement)
+    val_episodes: int = 100
+    choice_grid: ChoiceGrid = field(default_factory=ChoiceGrid)
 
     def validate(self) -> "PipelineConfig":
         names = tuple(tasks.canonical_name(t) for t in self.tasks)
+        if self.val_episodes < 0:
+            raise ValueError(f"--val-episodes must be >= 0, got {self.val_episodes}")
+        self.choice_grid.validate()
         if self.media_episodes < 0:
             raise ValueError(f"--media-episodes must be >= 0, got {self.media_episodes}")
         if not 0.0 <= self.diagnose_below <= 100.0:
@@ -85,6 +164,11 @@ class PipelineConfig:
                              "the clean evaluation)")
         return PipelineConfig(**{**self.__dict__, "tasks": names})
 
+    def chooses(self, label: str) -> bool:
+        """Whether the ``label`` run chooses its refinement on the validation split: a READ run, with
+        validation episodes asked for and a largest --read-N that refines."""
+        return self.val_episodes > 0 and self.method_of(label) == "read" and max(self.read_N) > 0
+
     def run_name(self, label: str) -> str:
         """The run folder of a method or variant on each task (``--run-name``; default its label)."""
         return dict(self.run_names).get(label, label)
@@ -102,15 +186,21 @@ class PipelineConfig:
 class EvalRequest:
     """One evaluation of a run on the test split: N refinement steps (None: the method's default,
     for a method evaluated once), from SPE's top-1 or the oracle's ``rank``-th nearest training
-    demonstration, on clean images or with Gaussian ``noise`` / a ``brightness`` factor on the RGB.
+    demonstration, on clean images or with Gaussian ``noise`` / a ``brightness`` factor on the RGB,
+    refined as the run's configs say or as its ``choice`` file says.
     ``experiments.evaluate`` names the result from these options."""
     n: int | None = None
     rank: int | None = None  # None: SPE top-1
     noise: float = 0.0
     brightness: float = 1.0
+    # a READ run's choice file (results/<task>/<run>/choice.json): refined (n > 0) with the setting
+    # chosen there on the validation split instead of the run's own
+    choice: str | None = None
 
     def argv(self) -> list[str]:
         out = [] if self.n is None else ["--N", str(self.n)]
+        if self.choice is not None:
+            out += ["--choice", self.choice]
         if self.rank is not None:
             out += ["--retrieval", "cheat", "--rank", str(self.rank)]
         if self.noise:
@@ -130,6 +220,9 @@ class EvalRequest:
         return f"evaluate {method}{where}{images}{steps}"
 
     def matches(self, r: dict, method: str) -> bool:
+        if self.choice is not None:
+            from readjax.lab import choice
+            return choice.is_chosen_eval(r, method, self.choice, self.n, self.rank, self.noise, self.brightness)
         return result_record.is_default_eval(r, method, self.n, self.rank, self.noise, self.brightness)
 
 

@@ -43,14 +43,15 @@ def finished_evaluation(results: Path, task: str, run_name: str, method: str, re
                         episodes: int) -> dict | None:
     """The evaluation a step asks for, if ``results/<task>/<run>/eval/`` holds it: ``method``'s
     evaluation ``request`` (its default one at that N, start and images:
-    ``result_record.is_default_eval``) over ``episodes`` test episodes, on a test split whose
-    ground-truth replay is on record at 100 %."""
+    ``result_record.is_default_eval``; or refined as its choice file says) over ``episodes`` test
+    episodes, on a test split whose ground-truth replay is on record at 100 %. A validation record
+    never counts, wherever it lies."""
     for f in sorted((results / task / run_name / "eval").glob("*.json")):
         try:
             r = json.loads(f.read_text())
         except json.JSONDecodeError:
             continue
-        if (r.get("task") == task and r.get("episodes") == episodes
+        if (r.get("task") == task and r.get("episodes") == episodes and r.get("split", "test") == "test"
                 and request.matches(r, method)
                 and verification.evaluation_verified(results, r)):
             return r
@@ -72,11 +73,12 @@ def check_media(media: Path, eval_dir: Path) -> None:
                                 f"({media} against {eval_dir}): an episode's outcome depends on its batch")
 
 
-def copy_results(run: Path, results: Path) -> None:
+def copy_results(run: Path, results: Path, folder: str = "eval") -> None:
     """Mirror a run's evaluation JSONs into results/<task>/<run>/eval/ (small, committed), and its
-    training records (:func:`copy_training_records`)."""
-    for f in sorted((run / "eval").glob("*.json")):
-        dest = results / run.parent.name / run.name / "eval" / f.name
+    training records (:func:`copy_training_records`); ``folder="val"``: its validation evaluations,
+    RUN/val/ into results/<task>/<run>/val/."""
+    for f in sorted((run / folder).glob("*.json")):
+        dest = results / run.parent.name / run.name / folder / f.name
         dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(f, dest)
     copy_training_records(run, results)

@@ -36,6 +36,7 @@ STEP_RESOURCES = {
     "train": {"num_cpus": 1, "memory": 3 * GIB},
     "evaluate": {"num_cpus": 1, "memory": 2 * GIB},
     "media": {"num_cpus": 1, "memory": 2 * GIB},
+    "choose": {"num_cpus": 1, "memory": 1 * GIB},  # reads the val evaluations' JSONs, writes the choice
 }
 # where the cluster has GPUs a training asks for this share of one (a GPU holds a dozen of the cpu
 # preset's trainings; JAX's preallocation is turned off for them), and only the trainings: the GPU

@@ -58,6 +58,8 @@ def collect(runs_root: str | Path, exclude: tuple[str, ...] = (), include: tuple
     root = Path(runs_root)
     out = []
     for f, r in _json_records(root, "eval/*.json", ("success_rate", "task")):
+        if r.get("split", "test") != "test":  # a validation evaluation is never a table's number
+            continue
         run_dir = f.parent.parent
         label = run_label(run_dir, root, r["task"])
         if not _kept(run_dir, label, exclude, include):

@@ -86,15 +86,15 @@ def _run_sde(r: dict) -> dict:
 
 
 def _clean_spe_top1(r: dict, n: int | None, oracle_rank: int | None = None, image_noise: float = 0.0,
-                    brightness: float = 1.0) -> bool:
+                    brightness: float = 1.0, candidates: int = 1) -> bool:
     """Clean images (or exactly the perturbation ``image_noise`` / ``brightness``), SPE top-1
-    (``oracle_rank``: the oracle's neighbour of that rank instead), one candidate, N = ``n``;
+    (``oracle_rank``: the oracle's neighbour of that rank instead), ``candidates`` (one), N = ``n``;
     ``n=None``: the planner's default N (what an iterative method runs when not told; a one-pass
     method records None)."""
     cfg = eval_config_of(r)
     start = ("spe", 1) if oracle_rank is None else ("cheat", oracle_rank)
     images = (cfg["image_noise"], cfg["brightness"]) == (image_noise, brightness)
-    return (images and (cfg["retrieval"], cfg["rank"]) == start and cfg["candidates"] == 1
+    return (images and (cfg["retrieval"], cfg["rank"]) == start and cfg["candidates"] == candidates
             and (cfg["N"] in (None, DEFAULT_N) if n is None else cfg["N"] == n))
 
 
@@ -105,13 +105,13 @@ def is_spe_eval(r: dict, n: int, refinement: tuple[str, int]) -> bool:
 
 
 def is_eval(r: dict, method: str, n: int | None, oracle_rank: int | None = None, image_noise: float = 0.0,
-            brightness: float = 1.0, refinement: tuple[str, int] | None = None) -> bool:
+            brightness: float = 1.0, refinement: tuple[str, int] | None = None, candidates: int = 1) -> bool:
     """Whether ``r`` is ``method``'s evaluation at N = ``n`` (None: the method's default) with one
-    candidate, from SPE's top-1 (``oracle_rank``: the oracle's neighbour of that rank), on clean
-    images (or exactly ``image_noise`` / ``brightness``), refined (n > 0) with ``refinement``
-    (update, rounds), or where None with the refinement its run's configs name (one round of none
-    for a method without READ's update)."""
-    if r.get("method") != method or not _clean_spe_top1(r, n, oracle_rank, image_noise, brightness):
+    candidate (or ``candidates``), from SPE's top-1 (``oracle_rank``: the oracle's neighbour of that
+    rank), on clean images (or exactly ``image_noise`` / ``brightness``), refined (n > 0) with
+    ``refinement`` (update, rounds), or where None with the refinement its run's configs name (one
+    round of none for a method without READ's update)."""
+    if r.get("method") != method or not _clean_spe_top1(r, n, oracle_rank, image_noise, brightness, candidates):
         return False
     update, rounds = _refinement(r)
     if n == 0:

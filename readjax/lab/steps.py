@@ -41,7 +41,7 @@ class PipelineError(RuntimeError):
 
 @dataclass
 class Step:
-    kind: str  # generate / verify / train / evaluate / media
+    kind: str  # generate / verify / train / evaluate / media / choose
     task: str
     label: str
     argv: list[str]
@@ -84,9 +84,11 @@ MISSING = {
     "verify": "the ground truth did not replay at 100 %",
     "train": "its finished marker was not written",
     "evaluate": "no record under results/ is the evaluation asked for: its method, N, start, images and "
-                "refinement (update, rounds) on a test split whose replay is on record at 100 %; check "
-                "result_record.is_eval against the record the log names",
+                "refinement (update, rounds, or the run's choice file) on a test (or val) split whose replay is "
+                "on record at 100 %; check result_record.is_eval against the record the log names",
     "media": "no rollout video was published",
+    "choose": "no choice file over the grid's settings, N and val episodes, on a val split whose replay is on "
+              "record at 100 % (readjax.lab.choice.finished_choice)",
 }
 
 

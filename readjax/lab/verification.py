@@ -56,6 +56,7 @@ def is_verified(results: str | Path, task: str, fingerprint: str | None, episode
 
 
 def evaluation_verified(results: str | Path, r: dict) -> bool:
-    """Whether the test split an evaluation result ran on has a 100 % replay of at least as many
-    episodes on record."""
-    return is_verified(results, r["task"], r.get("test_fingerprint"), r.get("episodes", len(r.get("success", []))))
+    """Whether the split an evaluation result ran on (its ``split``: test, or val; records older than
+    the field ran on the test split) has a 100 % replay of at least as many episodes on record."""
+    return is_verified(results, r["task"], r.get("test_fingerprint"), r.get("episodes", len(r.get("success", []))),
+                       split=r.get("split", "test"))
