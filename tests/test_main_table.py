@@ -89,6 +89,24 @@ def test_a_second_qualifying_evaluation_is_noted_not_mixed(tmp_path):
     assert "| READ (N=100): `read_a` | – | 100.0 |" in section and "Every cell ran on a test split" in section
 
 
+def test_the_setting_chosen_on_the_validation_split_fills_reads_cell_before_the_presets(tmp_path):
+    runs = tmp_path / "results"
+    _write(runs, "reach_target", "read_a", "a_preset", [True] * 4)  # the preset's refinement, first by name
+    _write(runs, "reach_target", "read_a", "b_chosen", [True, False, False, False], refine_update="renoise", rounds=1)
+    f = runs / "reach_target" / "read_a" / "eval" / "b_chosen.json"
+    chosen = {"rounds": 1, "refine": "renoise", "candidates": 1}
+    f.write_text(json.dumps(dict(json.loads(f.read_text()), chosen_on="val", choice={"chosen": chosen})))
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
+    section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
+    assert "| READ (N=100): `read_a` | – | 25.0‡ |" in section and "a_preset.json` also qualifies" in section
+    # a record claiming a choice it was not refined with fills nothing as chosen: the preset's does
+    f.write_text(json.dumps(dict(json.loads(f.read_text()), choice={"chosen": dict(chosen, rounds=2)})))
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det"]) == 0
+    section = out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
+    assert "| READ (N=100): `read_a` | – | 100.0‡ |" in section
+
+
 def test_reads_rendered_episodes_are_shown_for_the_cell_they_belong_to(tmp_path):
     """A task's overlay and video (the pipeline's media/ beside eval/) appear under the table, linked
     relative to the report, only for the evaluation that fills the READ cell."""

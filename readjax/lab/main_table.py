@@ -7,7 +7,9 @@ Which runs fill the rows is named by the caller (``experiments.report --main REA
 cell is the run's evaluation on clean test images with SPE top-1 retrieval, one candidate and the
 refinement of a named preset (its ``sde.update`` and ``sde.rounds``, inference-only settings that
 a run trained under an older preset can be evaluated with), so an evaluation of another inference
-setting of the same run never fills it by accident.
+setting of the same run never fills it by accident. Where the run's evaluation refined with the
+setting chosen on the validation split (``chosen_on: val``, the pipeline's choice step,
+:mod:`readjax.lab.choice`) exists, it fills the cell instead, whatever setting was chosen.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from readjax import failure_modes, tasks
 from readjax.lab import paper
 from readjax.config import preset
 from readjax.lab.paired import discordant
-from readjax.lab.result_record import is_direct_eval, is_spe_eval, training_stops
+from readjax.lab.result_record import is_direct_eval, is_eval, is_spe_eval, training_stops
 from readjax.tables import of_suite, success_chart, suite_note
 
 READ_ROW, RETRIEVAL_ROW, DET_ROW = "READ (N=100)", "retrieval only (N=0)", "Deterministic"
@@ -32,16 +34,27 @@ def refinement_of(preset_name: str) -> tuple[str, int]:
     return sde.update, sde.rounds
 
 
+def is_chosen_spe_eval(r: dict, n: int) -> bool:
+    """Whether ``r`` is READ's clean-image SPE evaluation at N = ``n`` refined with the setting its
+    choice (recorded in ``r``) picked on the validation split."""
+    chosen = (r.get("choice") or {}).get("chosen") or {}
+    return (r.get("chosen_on") == "val" and {"refine", "rounds"} <= set(chosen)
+            and is_eval(r, "read", n, refinement=(chosen["refine"], chosen["rounds"]),
+                        candidates=chosen.get("candidates", 1)))
+
+
 def select(results: list[dict], read_run: str, det_run: str,
            refinement: tuple[str, int]) -> tuple[dict[str, dict[str, dict]], list[str]]:
     """The three rows (row -> task -> result) and notes on cells that more than one file could
-    fill (the first file in path order is used)."""
+    fill (the first file in path order is used; for READ's row, a setting chosen on the validation
+    split before the preset's)."""
     rows: dict[str, dict[str, dict]] = {READ_ROW: {}, RETRIEVAL_ROW: {}, DET_ROW: {}}
     notes = []
-    for r in sorted(results, key=lambda r: r["_file"]):
+    chosen_first = sorted(results, key=lambda r: (not is_chosen_spe_eval(r, 100), r["_file"]))
+    for r in chosen_first:
         run = r["_run_name"]
         row = None
-        if run == read_run and is_spe_eval(r, 100, refinement):
+        if run == read_run and (is_chosen_spe_eval(r, 100) or is_spe_eval(r, 100, refinement)):
             row = READ_ROW
         elif run == read_run and is_spe_eval(r, 0, refinement):
             row = RETRIEVAL_ROW
