@@ -21,6 +21,7 @@ examples:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 from experiments import _cli
@@ -43,6 +44,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--batch-size", type=_cli.positive_int, default=32, help="episodes simulated together")
     p.add_argument("--table-only", action="store_true", help="measure nothing: print the table from RESULTS")
     p.add_argument("--force", action="store_true", help="measure again even where a record exists")
+    p.add_argument("--unverified", action="store_true",
+                   help="measure even where the test split's ground truth replays below 100 %% (the row is "
+                        "marked ‡ in every table: the evaluation path does not reproduce every demonstration)")
     p.add_argument("--out", default=None, help="also write the table (markdown) to this file")
     return p
 
@@ -61,17 +65,21 @@ def _prepare(task: str, args) -> None:
     from readjax.lab import verification
     from readjax.data import store
     from readjax.data.generate import GenerateConfig, generate
-    from readjax.evaluation import replay_ground_truth
     from readjax import tasks
+    from readjax.evaluation import replay_ground_truth
+    from readjax.sim.execute import ExecConfig
 
     for split, n in (("train", args.train_episodes), ("test", args.episodes)):
         generate(GenerateConfig(task=task, split=split, episodes=n, out=args.data, batch_size=args.batch_size,
                                 image_size=args.image_size))
     test = store.load_dataset(store.split_dir(args.data, task, "test"))
     if not verification.is_verified(args.results, task, test.fingerprint, args.episodes):
+        on_record = verification.find(args.results, task, test.fingerprint) or {}
+        if args.unverified and on_record.get("execution") == dataclasses.asdict(ExecConfig()):
+            return  # replayed below 100 % on record by this execution path: measured anyway, marked
         record = replay_ground_truth(tasks.make(task), test, batch_size=args.batch_size)
         verification.write(args.results, dict(record, data=str(store.split_dir(args.data, task, "test"))))
-        if record["success_rate"] < 1.0:
+        if record["success_rate"] < 1.0 and not args.unverified:
             raise ValueError(f"{task}: the test split's ground truth replays at {100 * record['success_rate']:.1f} %, "
                              f"not 100 % (failed seeds {record['failed_seeds'][:10]}): the evaluation path does not "
                              f"measure what it says on this task; nothing measured")
@@ -96,7 +104,8 @@ def main(argv=None) -> int:
                     pass  # no local split: generate it and measure
             _prepare(task, args)
             r = difficulty.measure(task, args.data, args.results, ranks=tuple(args.ranks), episodes=args.episodes,
-                                   train_episodes=args.train_episodes, batch_size=args.batch_size)
+                                   train_episodes=args.train_episodes, batch_size=args.batch_size,
+                                   require_replay=not args.unverified)
             rates = " / ".join(f"{100 * r['ranks'][str(i)]['success_rate']:.0f}" for i in args.ranks)
             print(f"{task} ({r['code']}): oracle i = {'/'.join(map(str, args.ranks))}: {rates} %  "
                   f"(paper's Cheat: {' / '.join(str(v) for v in r['paper_cheat'].values())})")

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import jax
@@ -23,7 +23,7 @@ from readjax import atomic_write, failure_modes, provenance, stage_folder, table
 from readjax import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
-from readjax.sim.execute import execute_motions
+from readjax.sim.execute import ExecConfig, execute_motions
 
 @dataclass(frozen=True)
 class EvalConfig:
@@ -96,6 +96,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         # mean world-frame distance between the retrieved and the ground-truth end-effector paths
         "retrieval_error_m": float(np.mean(np.linalg.norm(retrieved_pos - gt_pos, axis=-1))),
+        "execution": asdict(ExecConfig()),  # how plans were executed (IK, skipped waypoints)
         "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None, "rounds": rounds,
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
@@ -170,6 +171,7 @@ def replay_ground_truth(env, ds: Dataset, batch_size: int = 32) -> dict:
         "image_size": ds.image_size, "batch_size": batch_size, "format_version": ds.meta.get("format_version"),
         "suite": tasks.suite_of(ds.meta),
         "dataset_fingerprint": ds.fingerprint, "commit": provenance.commit(),
+        "execution": asdict(ExecConfig()),
         "seconds": {"guard": round(t_guard, 2), "execution": round(time.time() - t0 - t_guard, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),
     }

@@ -4,6 +4,7 @@ a split of another suite is refused."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -14,7 +15,8 @@ from experiments import difficulty as difficulty_cli
 from readjax import tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
-from readjax.lab import difficulty, verification
+from readjax.lab import difficulty, difficulty_why, verification
+from readjax.sim.execute import ExecConfig
 
 pytestmark = pytest.mark.timeout(900)
 
@@ -52,6 +54,15 @@ def test_a_split_against_itself_replays_its_own_ground_truth(data, tmp_path, cap
     assert r["replay_verified"] and r["paper_cheat"] == {"1": 96}  # RT's Cheat (i = 1) in Table 5
     assert r["generation"]["test"]["episodes_kept"] == 6
     assert (results / TASK / "difficulty" / f"{test.fingerprint}.json").exists()
+    # the why: the own copies land on their key frames (0 cm, no failure), all in the first bin
+    first = r["ranks"]["1"]["failures"]
+    assert max(first["keyframe_error_cm"]) < 1e-3 and first["counts"] == {} and first["mode"] == [None] * 6
+    assert len(r["ranks"]["2"]["failures"]["keyframe_error_cm"]) == 6
+    profile = difficulty_why.tolerance_profile(r)
+    assert sum(n for _, n in profile) == 12  # both ranks' copies, each in one bin
+    assert profile[0][0] >= 6 and profile[0][1] >= 6  # the six own copies: below 1 cm, succeeded
+    assert r["execution"]["expert_rate_posture"] is True
+    assert "| RT | +4 | 0.0 cm, 0° |" in difficulty_why.table(records)
     assert "| RT | 100 | " in out  # the table, beside the paper's row
     # a second call measures nothing: the record of this split exists
     assert _cli.run(difficulty_cli.main, args) == 0
@@ -66,6 +77,20 @@ def test_no_measurement_without_a_full_replay_on_record(data, tmp_path):
                                           "episodes": 6, "success_rate": 5 / 6})
     with pytest.raises(store.DatasetError, match="no 100 % ground-truth replay"):
         difficulty.measure(TASK, data / "mirror", tmp_path / "bad", ranks=(1,), episodes=6)
+
+
+def test_unverified_measures_a_split_replayed_below_100_percent_and_marks_it(data, tmp_path, capsys):
+    test = store.load_dataset(store.split_dir(data / "mirror", TASK, "test"))
+    bad = {"task": TASK, "split": "test", "dataset_fingerprint": test.fingerprint, "episodes": 6,
+           "success_rate": 5 / 6, "execution": dataclasses.asdict(ExecConfig())}
+    verification.write(tmp_path / "bad", bad)
+    args = ["--task", "RT", "--data", str(data / "mirror"), "--results", str(tmp_path / "bad"), "--train-episodes",
+            "6", "--episodes", "6", "--ranks", "1", "--image-size", "32", "--batch-size", "2"]
+    # the replay on record (5 / 6, by this execution path) is not run again: the row is measured, marked
+    assert _cli.run(difficulty_cli.main, [*args, "--unverified"]) == 0
+    assert verification.find(tmp_path / "bad", TASK, test.fingerprint)["success_rate"] == 5 / 6
+    r = difficulty.load_records(tmp_path / "bad")[TASK]
+    assert not r["replay_verified"] and "| RT ‡ | 100 |" in capsys.readouterr().out
 
 
 def test_a_split_of_another_suite_is_refused_with_the_command_that_regenerates_it(data, tmp_path):

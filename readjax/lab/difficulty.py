@@ -13,17 +13,20 @@ with a training split of the same suite version and camera.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
 
+import jax.numpy as jnp
 import numpy as np
 
-from readjax import atomic_write, provenance, retrieval, tasks
-from readjax.lab import paper, verification
+from readjax import atomic_write, failure_modes, provenance, retrieval, tasks
+from readjax import motion as motion_lib
 from readjax.data import store
 from readjax.data.guard import check_scene_images
-from readjax.sim.execute import execute_motions
+from readjax.lab import paper, verification
+from readjax.sim.execute import ExecConfig, execute_motions
 
 FOLDER = "difficulty"
 RANKS = (1, 3, 10)
@@ -64,18 +67,23 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
     t0 = time.time()
     check_scene_images(env, test)
     order = retrieval.oracle_ranking(test.camera, test.motion, train.motion)
-    gt_pos = np.asarray(retrieval.positions(test.camera, test.motion))
+    gt_pose = _world_poses(test.camera, test.motion)
+    cam_origin = np.asarray(test.camera.cam_to_world)[:3, 3]
     by_rank = {}
     for i in ranks:
         idx = order[:, min(i, order.shape[1]) - 1]
         res = execute_motions(env, test.camera, test.scenes, train.motion[idx], batch_size=batch_size)
-        pos = np.asarray(retrieval.positions(test.camera, train.motion[idx]))
+        pose = _world_poses(test.camera, train.motion[idx])
         success = res["success"].astype(bool)
         by_rank[str(i)] = {
             "success_rate": float(success.mean()), "success": success.astype(int).tolist(),
             "neighbour_seeds": train.seeds[idx].tolist(),
-            "position_error_m": float(np.mean(np.linalg.norm(pos - gt_pos, axis=-1))),
+            "position_error_m": float(np.mean(np.linalg.norm(pose[0] - gt_pose[0], axis=-1))),
             "aborted": int(np.sum(res["aborted"])), "failure": int(np.sum(res["failure"])),
+            # why the copies that failed failed: worst key-frame errors against the ground truth, modes
+            "failures": failure_modes.diagnose(
+                train.motion[idx], pose, test.motion, gt_pose, cam_origin, res["success"], res["aborted"],
+                res["failure"], res["held"] if env.graspable else None),
         }
     code = tasks.code_of(task)
     record = {
@@ -87,6 +95,7 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
         # how the splits were generated: seeds tried, kept, without a valid placement, expert success
         "generation": {split: _generation_summary(store.split_dir(data_root, task, split))
                        for split in ("train", "test")},
+        "execution": dataclasses.asdict(ExecConfig()),  # how plans were executed (IK, skips)
         "seconds": round(time.time() - t0, 2), "versions": provenance.versions(),
         "machine": provenance.machine(), "commit": provenance.commit(),
     }
@@ -94,6 +103,12 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write.write_text(path, json.dumps(record, indent=2))
     return record
+
+
+def _world_poses(cam, motions) -> tuple[np.ndarray, np.ndarray]:
+    """World end-effector positions (B, T, 3) and rotations (B, T, 3, 3) of motions."""
+    pos, rot, _ = motion_lib.decode(cam, jnp.asarray(motions))
+    return np.asarray(pos), np.asarray(rot)
 
 
 def _generation_summary(split_dir: Path) -> dict | None:
@@ -156,9 +171,10 @@ def table(records: dict[str, dict], ranks=RANKS) -> str:
     return "\n".join(lines)
 
 
-def generation_table(records: dict[str, dict]) -> str:
+def generation_table(records: dict[str, dict], results=None) -> str:
     """Per task, how its splits were generated: training seeds tried, kept, without a valid placement,
-    the expert's success over the seeds with one, and the test split's ground-truth replay."""
+    the expert's success over the seeds with one, and the test split's ground-truth replay (with
+    ``results``: the replay record's count where it fell short of 100 %)."""
     lines = ["| task | training seeds tried | kept | no valid placement | expert success (valid placements) "
              "| test replay |", "|---|---|---|---|---|---|"]
     for code in tasks.AVG16:
@@ -167,6 +183,9 @@ def generation_table(records: dict[str, dict]) -> str:
         if not g:
             continue
         replay = f"{r['episodes']} / {r['episodes']}" if r.get("replay_verified") else "not on record ‡"
+        short = verification.find(results, r["task"], r["test_fingerprint"]) if results and replay[0] == "n" else None
+        if short and "successes" in short:
+            replay = f"{short['successes']} / {short['episodes']} ‡"
         lines.append(f"| {code} | {g['episodes_attempted']} | {g['episodes_kept']} | "
                      f"{g.get('episodes_infeasible', '–')} | "
                      f"{100 * g.get('expert_success_rate_feasible', g['expert_success_rate']):.1f} % | {replay} |")

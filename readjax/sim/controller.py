@@ -20,6 +20,7 @@ from readjax import geometry as geo
 from readjax.sim import ik
 from readjax.sim.kinematics import fk, grip_from_fingers
 
+IK_ITERATIONS_PER_STEP = 3  # the expert's warm-started IK iterations per 20 ms control step
 
 @struct.dataclass
 class WaypointPlan:
@@ -70,7 +71,7 @@ def plan_targets(plan: WaypointPlan, start_pos: jax.Array, start_quat: jax.Array
     return pos, quat, plan.grip[seg]
 
 
-def rollout(env, state, plan: WaypointPlan, durations, ik_iterations: int = 3):
+def rollout(env, state, plan: WaypointPlan, durations, ik_iterations: int = IK_ITERATIONS_PER_STEP):
     """Execute a plan from ``state``; returns (final state, :class:`Trace`). Pure, jit/vmap-able."""
     q0 = state.data.qpos[env.chain.qpos_adr]
     p0, r0 = fk(env.chain, q0)
@@ -104,7 +105,7 @@ def rollout(env, state, plan: WaypointPlan, durations, ik_iterations: int = 3):
     return state, trace
 
 
-def kinematic_tracking(chain, q0: jax.Array, plan: WaypointPlan, durations, ik_iterations: int = 3,
+def kinematic_tracking(chain, q0: jax.Array, plan: WaypointPlan, durations, ik_iterations: int = IK_ITERATIONS_PER_STEP,
                        stride: int = 1):
     """The expert's IK tracking of a plan without physics: the same interpolated targets and
     warm-started IK as :func:`rollout`, every ``stride``-th control step (with ``stride`` times the

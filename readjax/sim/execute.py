@@ -1,7 +1,10 @@
 """Executing plans in simulation (METHOD.md section 11).
 
 A plan's 101 frames are converted to world end-effector poses with the dataset's camera, each
-pose is solved by IK (warm-started from the previous one, so the arm takes the nearby branch), and
+pose is solved by IK (warm-started from the previous one; the null-space pull towards the home
+posture runs at the expert's rate, its iterations per control step times the steps per frame, the
+remaining iterations converge on the pose alone: pulled to convergence at every frame, the posture
+can flip between two frames, a 0.6 rad swing of three joints that the expert spread over nine), and
 the arm moves through the joint-space waypoints in order with the gripper open when grip > 0.5.
 A waypoint IK cannot reach (error > ``reach_tol``) is skipped (the arm holds the previous one);
 more than ``max_skipped`` skips abort the episode as a failure. Success = the task's condition held
@@ -22,11 +25,11 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from readjax import sharding
 from readjax import motion as motion_lib
+from readjax import sharding
 from readjax.sim import ik
 from readjax.sim.camera import CameraParams
-from readjax.sim.controller import rollout_joints
+from readjax.sim.controller import IK_ITERATIONS_PER_STEP, rollout_joints
 from readjax.sim.kinematics import HOME_Q
 
 TRACE_KEYS = ("tcp_pos", "ctrl", "attached", "rel_pos", "rel_quat")
@@ -38,6 +41,10 @@ class ExecConfig:
     reach_pos_tol: float = 0.01  # m: a waypoint IK misses by more is "cannot be reached"
     reach_rot_tol: float = 0.1  # rad
     max_skipped: int = 10  # more skipped waypoints abort the episode (METHOD.md section 11)
+    # the null-space pull towards the home posture at the expert's rate: its IK iterations per control
+    # step times the control steps per frame (the rest of a waypoint's iterations converge on the pose
+    # alone), so the posture drifts as continuously as the expert's did; False: every iteration pulls
+    expert_rate_posture: bool = True
 
 
 def segment_durations(env) -> tuple[int, ...]:
@@ -50,10 +57,15 @@ def segment_durations(env) -> tuple[int, ...]:
 def solve_waypoints(env, pos: jax.Array, rot: jax.Array, cfg: ExecConfig):
     """IK through (W, 3) / (W, 3, 3) poses; returns q (W, 7) with skipped ones held, skipped (W,)."""
     q_home = jnp.asarray(HOME_Q)
+    pulls = min(cfg.ik_iterations, IK_ITERATIONS_PER_STEP * segment_durations(env)[0])
 
     def body(q_prev, target):
         p, r = target
-        q = ik.solve_ik(env.chain, q_prev, p, r, cfg.ik_iterations)
+        if not cfg.expert_rate_posture:
+            q = ik.solve_ik(env.chain, q_prev, p, r, cfg.ik_iterations)
+        else:
+            q = ik.solve_ik(env.chain, q_prev, p, r, pulls)
+            q = ik.solve_ik(env.chain, q, p, r, cfg.ik_iterations - pulls, rest=q)
         pe, re = ik.pose_error(env.chain, q, p, r)
         ok = (pe < cfg.reach_pos_tol) & (re < cfg.reach_rot_tol)
         q_keep = jnp.where(ok, q, q_prev)

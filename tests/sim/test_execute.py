@@ -95,3 +95,22 @@ def test_batched_equals_unbatched(env, solve):
         np.testing.assert_array_equal(np.asarray(sb[i]), np.asarray(s))
         np.testing.assert_allclose(np.asarray(qb[i]), np.asarray(q), atol=1e-5)
     assert np.asarray(sb)[1, 3]
+
+
+def test_the_posture_is_pulled_home_at_the_experts_rate_not_at_once(env):
+    """A pose held for W waypoints: pulled to convergence at every waypoint (the old rule), the posture
+    jumps to its home-nearest branch at the first waypoint and stays; at the expert's rate (its IK
+    iterations per control step times the steps per frame) it drifts there over several waypoints,
+    as the expert's tracking did, each waypoint on the pose."""
+    q_a = np.asarray(known_path(env, 1.5))[-1]
+    pos, rot = fk(env.chain, jnp.asarray(np.repeat(q_a[None], W, 0)))
+    pulls = execute.IK_ITERATIONS_PER_STEP * execute.segment_durations(env)[0]
+    assert 0 < pulls < CFG.ik_iterations
+    steps = {}
+    for rate in (True, False):
+        cfg = execute.ExecConfig(expert_rate_posture=rate)
+        q, skipped = jax.jit(lambda p, r: execute.solve_waypoints(env, p, r, cfg))(pos, rot)
+        assert not np.any(np.asarray(skipped))
+        steps[rate] = np.abs(np.diff(np.asarray(q), axis=0)).max(axis=1)  # posture change per waypoint
+    assert steps[False][1:].max() < 1e-3  # converged at once
+    assert steps[True][1:].max() > 10 * steps[False][1:].max()  # still drifting, waypoint by waypoint
