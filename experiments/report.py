@@ -11,6 +11,7 @@ examples:
   python -m experiments.report --runs runs/ --compare 'read: spe_N100'   # paired tests vs that row
   python -m experiments.report --runs results/ --compare 'read: retrieval only (N=0)' deterministic
   python -m experiments.report --runs results/ --main read_v3_5k deterministic_v3_5k   # the paper's main table
+  python -m experiments.report --runs results/ --main read_s2,read_s2_seed1,read_s2_seed2 deterministic_s2,deterministic_s2_seed1,deterministic_s2_seed2   # over 3 trainings
   python -m experiments.report --runs results/ --claims read=read_v3_5k deterministic=deterministic_v3_5k
   python -m experiments.report --pages    # rebuild every generated page (docs/results.md, baselines.md, ...)
 """
@@ -39,10 +40,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--compare", nargs="+", default=[], metavar="ROW",
                    help="add, for each ROW, a table of every row's difference to it (a method label of the "
                         "tables, e.g. 'read: spe_N100') on the same test episodes, with exact McNemar p-values")
-    p.add_argument("--main", nargs=2, default=None, metavar=("READ_RUN", "DET_RUN"),
+    p.add_argument("--main", nargs=2, default=None, metavar=("READ_RUNS", "DET_RUNS"),
                    help="open the report with the paper's main table: READ at N = 100 (with the --main-preset refinement) "
-                        "and N = 0 from run READ_RUN, Deterministic from run DET_RUN, on every task that has "
-                        "them, Avg12 / Avg16, the paper's READ beside them, and paired tests per task")
+                        "and N = 0 from run READ_RUNS, Deterministic from run DET_RUNS, on every task that has "
+                        "them, Avg12 / Avg16, the paper's READ beside them, and paired tests per task. Each of the "
+                        "two may be a comma-separated list of runs, the trainings of one recipe with different "
+                        "train.seed (e.g. read_s2,read_s2_seed1,read_s2_seed2): each cell is then the mean over the "
+                        "trainings that have the task with their range (n=k where only k have it), Avg12 / Avg16 "
+                        "the mean and range of each training's own average, every training's row below, and the "
+                        "paired tests pooled over the trainings (READ's i-th against Deterministic's i-th, in "
+                        "the lists' order; N = 100 against N = 0 of the same training)")
     p.add_argument("--claims", nargs="+", default=None, metavar="ROLE=RUN",
                    help="test the paper's claims (READ above each baseline, READ-O above READ-L, refinement above "
                         "retrieval, recovery from a poor retrieval, robustness to noise and brightness) with paired "
@@ -66,7 +73,7 @@ def main(argv=None) -> None:
         for page in pages.regenerate("."):
             print(f"wrote {page}")
         return
-    from readjax.lab import main_table
+    from readjax.lab import main_table_seeds
     from readjax.lab.report import write_report
 
     from readjax.lab import claims
@@ -77,7 +84,7 @@ def main(argv=None) -> None:
     sections = []
     if args.main:
         read_run, det_run = args.main
-        sections.append(lambda results, chart: main_table.lines(results, read_run, det_run, chart,
+        sections.append(lambda results, chart: main_table_seeds.section(results, read_run, det_run, chart,
                                                                 preset_name=args.main_preset))
     claims_plot = Path(args.out).with_name(Path(args.out).stem + "_claims.png")
     if args.claims is not None:

@@ -10,6 +10,7 @@ from experiments import report as report_cli
 from readjax import tasks
 from readjax.lab import paper, verification
 from readjax.config import preset
+from readjax.tables import suite_note
 
 
 def test_paper_row_reproduces_its_printed_averages():
@@ -169,3 +170,47 @@ def test_failures_are_counted_by_mode_per_row(tmp_path):
     assert "| RT | READ (N=100): `read_a` | 2 |  |  | 1 | 1 |  |  |  |  |  | 1 | 4.0 / 0.5 | 25.0 / 2.0 |" in section
     assert "| RT | Deterministic: `det_a` | 4 | 1 |  |  | 2 |  |  |  |  | 1 | – | 3.2 / – | 5.0 / – |" in section
     assert "| PB |" not in section.split("Failures by mode")[1].split("How the rows")[0]
+
+
+def _section(out) -> str:
+    return out.read_text().split("## Main table")[1].split("## Methods x tasks")[0]
+
+
+def test_one_run_per_role_prints_the_one_training_table_as_before(tmp_path):
+    """One run name per role: the section is the one-training table, character for character as
+    before several trainings per role existed."""
+    runs = tmp_path / "results"
+    _write(runs, "reach_target", "read_a", "spe_N100_now", [True] * 9 + [False])
+    _write(runs, "reach_target", "read_a", "spe_N0", [False] * 3 + [True] * 7, N=0)
+    _write(runs, "push_button", "read_a", "spe_N100_now", [True, False, True, True])
+    _write(runs, "reach_target", "det_a", "direct", [False] * 2 + [True] * 8, method="deterministic", N=None)
+    verification.write(runs, {"task": "reach_target", "split": "test", "dataset_fingerprint": "fp-reach_target",
+                              "episodes": 10, "success_rate": 1.0})
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_a", "det_a"]) == 0
+    dashes = lambda k: " | –" * k  # noqa: E731
+    suite = tasks.SUITE_VERSION
+    expected = "\n".join([
+        f" (the paper's layout), suite {suite}", "", suite_note(suite), "",
+        "READ is run `read_a` on each task at N = 100 with the cpu preset's refinement (`sde.update="
+        f"{preset('cpu')['sde'].update}`, `sde.rounds={preset('cpu')['sde'].rounds}`), on clean test images with SPE "
+        "top-1 retrieval; retrieval only is the same run at N = 0; Deterministic is run `det_a`. Success % over each "
+        "task's test episodes; – = not measured yet. Avg12 / Avg16 appear once all their tasks are measured; `Avg (k)` "
+        "is the mean over the k tasks READ has been measured on, the paper's row over the same tasks.", "",
+        "| method | " + " | ".join(tasks.AVG16) + " | Avg12 | Avg16 | Avg (2) |", "|---" * 20 + "|",
+        "| READ (N=100): `read_a` | – | 90.0 | 75.0‡" + dashes(15) + " | 82.5 |",
+        "| retrieval only (N=0): `read_a` | – | 70.0" + dashes(17) + " |",
+        "| Deterministic: `det_a` | – | 80.0" + dashes(17) + " |",
+        f"| {paper.READ_LABEL} | 96.0 | 99.0 | 72.0 | 88.0 | 100.0 | 98.0 | 97.0 | 57.0 | 91.0 | 86.0 | 82.0 | 100.0 | "
+        "16.0 | 36.0 | 4.0 | 1.0 | 88.8 | 70.2 | 85.5 |", "",
+        "‡ ran on a test split with no 100 % ground-truth replay on record (`results/<task>/verify/test_<fingerprint>"
+        ".json`, written by `experiments.verify --results`): not a result until it has one: READ (N=100) PB.", "",
+        "![main table](results_main.png)", "",
+        "Paired per task (exact McNemar on the same episodes: episodes only the first row solves / only the second, "
+        "two-sided p):", "",
+        "| task | READ N=100 vs N=0 | READ N=100 vs Deterministic |", "|---|---|---|",
+        "| RT | +3 / -1, p=0.62 | +2 / -1, p=1 |", "| PB | – | – |", "",
+        "How the rows' models trained (per stage: steps, why it stopped, on how many tasks):", "",
+        "- READ (N=100): `read_a`: not recorded x 2", "- retrieval only (N=0): `read_a`: not recorded x 1",
+        "- Deterministic: `det_a`: not recorded x 1", "", ""])
+    assert _section(out) == expected

@@ -3,7 +3,8 @@ and Deterministic, per task in the paper's column order with Avg12 / Avg16 and t
 beside them, then per task paired tests (READ N = 100 against N = 0 and against Deterministic).
 
 Which runs fill the rows is named by the caller (``experiments.report --main READ_RUN DET_RUN``):
-``results/`` holds many trainings per task, and the table must say which recipe it reports. A READ
+``results/`` holds many trainings per task, and the table must say which recipe it reports (several
+trainings per role, comma-separated: :mod:`readjax.lab.main_table_seeds`). A READ
 cell is the run's evaluation on clean test images with SPE top-1 retrieval, one candidate and the
 refinement of a named preset (its ``sde.update`` and ``sde.rounds``, inference-only settings that
 a run trained under an older preset can be evaluated with), so an evaluation of another inference
@@ -43,11 +44,11 @@ def is_chosen_spe_eval(r: dict, n: int) -> bool:
                         candidates=chosen.get("candidates", 1)))
 
 
-def select(results: list[dict], read_run: str, det_run: str,
+def select(results: list[dict], read_run: str | None, det_run: str | None,
            refinement: tuple[str, int]) -> tuple[dict[str, dict[str, dict]], list[str]]:
     """The three rows (row -> task -> result) and notes on cells that more than one file could
     fill (the first file in path order is used; for READ's row, a setting chosen on the validation
-    split before the preset's)."""
+    split before the preset's). A run given as None fills its rows with nothing."""
     rows: dict[str, dict[str, dict]] = {READ_ROW: {}, RETRIEVAL_ROW: {}, DET_ROW: {}}
     notes = []
     chosen_first = sorted(results, key=lambda r: (not is_chosen_spe_eval(r, 100), r["_file"]))
@@ -78,12 +79,14 @@ def rates(rows: dict[str, dict[str, dict]]) -> dict[str, dict[str, float]]:
     out: dict[str, dict[str, float]] = {}
     for label, by_task in rows.items():
         table = {tasks.code_of(t): 100.0 * r["success_rate"] for t, r in by_task.items()}
-        out[label] = _with_averages(table, measured)
-    out[paper.READ_LABEL] = _with_averages(dict(paper.READ_TABLE7_A), measured)
+        out[label] = with_averages(table, measured)
+    out[paper.READ_LABEL] = with_averages(dict(paper.READ_TABLE7_A), measured)
     return out
 
 
-def _with_averages(table: dict[str, float], measured: list[str]) -> dict[str, float]:
+def with_averages(table: dict[str, float], measured: list[str]) -> dict[str, float]:
+    """``table`` (task code -> success %) with Avg12 / Avg16 where it has all their tasks and
+    ``Avg (k)`` over the k codes ``measured`` where it has them all."""
     table = dict(table)
     for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
         if all(c in table for c in codes):
@@ -97,7 +100,8 @@ def lines(results: list[dict], read_run: str, det_run: str, chart: Path | None =
           preset_name: str = "cpu", suite: int = tasks.SUITE_VERSION) -> list[str]:
     """The main table section of the report (markdown lines); ``chart``: where to draw its bars;
     READ's cells are evaluations with the refinement of preset ``preset_name``, every cell one on a
-    test split of suite version ``suite`` (the same seed is another scene in another suite)."""
+    test split of suite version ``suite`` (the same seed is another scene in another suite).
+    One run name per role; several trainings per role: :func:`readjax.lab.main_table_seeds.section`."""
     results = of_suite(results, suite)
     refinement = refinement_of(preset_name)
     rows, notes = select(results, read_run, det_run, refinement)
@@ -226,11 +230,12 @@ def shown_outcomes(media_json: Path, cell: dict) -> list[bool]:
     return cell["success"][:MEDIA_EPISODES_BEFORE_RECORD]
 
 
-def media_lines(read_cells: dict[str, dict], doc_dir: Path | None) -> list[str]:
+def media_lines(read_cells: dict[str, dict], doc_dir: Path | None, whose: str | None = None) -> list[str]:
     """READ's rendered episodes per task, where the pipeline made them: the first test episodes of
     the evaluation that fills the READ cell, rendered again under the same name in the run's
     ``media/`` folder beside ``eval/`` (motion overlay, linked rollout video). Paths are relative to
-    ``doc_dir``, the folder of the report that shows them."""
+    ``doc_dir``, the folder of the report that shows them; ``whose``: the run the cells are of, where
+    the table shows several READ trainings."""
     out = []
     for code in tasks.AVG16:
         r = read_cells.get(tasks.canonical_name(code))
@@ -249,6 +254,7 @@ def media_lines(read_cells: dict[str, dict], doc_dir: Path | None) -> list[str]:
         out = ["### READ's plans and rollouts per task", "",
                "Each overlay shows a task's first test images with the retrieved (yellow), planned (blue) "
                "and ground-truth (green) paths of the end effector, a dot where the gripper is closed; the "
-               "video executes the first four plans. Outcomes as in the table.", ""] + out
+               "video executes the first four plans. Outcomes as in the table"
+               + (f"'s row of training `{whose}`." if whose else "."), ""] + out
     return out
 

@@ -18,7 +18,7 @@ import re
 import numpy as np
 
 from readjax import tasks
-from readjax.lab import claims, main_table, paper
+from readjax.lab import claims, main_table, main_table_seeds, paper
 from readjax.lab.replicates import across_trainings
 from readjax.lab.report import collect
 from readjax.tables import of_suite, row_label, success_table
@@ -66,8 +66,12 @@ def _spread(cell: dict, groups: list[dict]) -> str | None:
 
 def main_lines(results: list[dict], read_run: str, det_run: str, suite: int, preset_name: str = "cpu") -> list[str]:
     """The compact main table: Avg12 / Avg16 of READ (N = 100), retrieval only, Deterministic and the
-    paper's READ, each row with its suite and runs, and a note on the suite and on trainings."""
+    paper's READ, each row with its suite and runs, and a note on the suite and on trainings;
+    comma-separated runs (several trainings per role): :func:`trainings_lines`."""
     mine = _suite_results(results, suite)
+    if "," in read_run or "," in det_run:
+        return trainings_lines(results, mine, main_table_seeds.split_runs(read_run),
+                               main_table_seeds.split_runs(det_run), suite, preset_name)
     rows, _ = main_table.select(mine, read_run, det_run, main_table.refinement_of(preset_name))
     table = main_table.rates(rows)
     n_tasks = len(rows[main_table.READ_ROW])
@@ -103,6 +107,38 @@ def main_lines(results: list[dict], read_run: str, det_run: str, suite: int, pre
                if unverified else "")
             + " Per task, paired tests, failures by mode: [docs/results.md](docs/results.md)."]
     return out
+
+
+def trainings_lines(results: list[dict], mine: list[dict], read_runs: list[str], det_runs: list[str], suite: int,
+                    preset_name: str = "cpu") -> list[str]:
+    """The compact main table over several trainings per role (``mine``: the suite's results): each
+    row's Avg12 / Avg16 as the mean and range over its trainings' own averages, as docs/results.md's."""
+    refinement = main_table.refinement_of(preset_name)
+    trainings, _ = main_table_seeds.select_trainings(mine, read_runs, det_runs, refinement)
+    means = main_table_seeds.summary(trainings, main_table_seeds.common_tasks(trainings))
+    names = {main_table.READ_ROW: "READ, N = 100", main_table.RETRIEVAL_ROW: "READ, retrieval only (N = 0)",
+             main_table.DET_ROW: "Deterministic"}
+    cells = [r for runs in trainings.values() for _, by_task in runs for r in by_task.values()]
+    n_tasks = len({t for _, by_task in trainings[main_table.READ_ROW] for t in by_task})
+    out = [f"| success % ({n_tasks} tasks, {_episodes(cells)}) | suite | Avg12 | Avg16 | runs |",
+           "|---|---|---|---|---|"]
+    unverified = []
+    for row, name in names.items():
+        runs = trainings[row]
+        mark = "‡" if any(not r.get("_verified", False) for _, by_task in runs for r in by_task.values()) else ""
+        unverified += [name] if mark else []
+        avgs = [main_table_seeds.spread(*means[row][c], len(runs)) + mark if c in means[row] else "–"
+                for c in ("Avg12", "Avg16")]
+        out.append(f"| {name} | {suite} | {avgs[0]} | {avgs[1]} | " + ", ".join(f"`{r}`" for r, _ in runs) + " |")
+    p = main_table.with_averages(dict(paper.READ_TABLE7_A), [])
+    out += [f"| READ, the paper (Table 7, setting A) | the paper's | {p['Avg12']:.1f} | {p['Avg16']:.1f} | – |", ""]
+    return out + [_suite_line(suite, results) + " The averages: the mean over a row's trainings (one per "
+                  "`train.seed`) of each training's own average, their range in brackets, `n=k` where only k "
+                  "trainings have every task of it."
+                  + (" ‡ a test split with no 100 % ground-truth replay on record: " + ", ".join(unverified) + "."
+                     if unverified else "")
+                  + " Per task, each training's row, paired tests pooled over trainings, failures by mode: "
+                  "[docs/results.md](docs/results.md)."]
 
 
 def baselines_lines(results: list[dict], roles: dict[str, str], suite: int, preset_name: str = "cpu") -> list[str]:

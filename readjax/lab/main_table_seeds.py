@@ -1,0 +1,218 @@
+"""The paper's main table over several trainings of each recipe: ``experiments.report --main
+READ_RUNS DET_RUNS`` with comma-separated run names, one training per ``train.seed`` (e.g.
+``read_s2,read_s2_seed1,read_s2_seed2``).
+
+Each training's cells are chosen as :func:`readjax.lab.main_table.select` chooses one run's (the
+setting chosen on the validation split first, the suite's test splits only, ‡ where a split has no
+ground-truth replay on record). A cell of the mean table is the mean over the trainings that have the
+task, their range, and how many they are where not all of the role's trainings have it; Avg12 / Avg16
+are the mean (and range) over trainings of each training's own average, which a training has only
+once it has every member task. Below it, every training's own row. The paired tests pool the
+trainings: READ N = 100 against N = 0 of the same training, and READ's i-th training against
+Deterministic's i-th (the lists' order), each pair on the same test episodes; one exact McNemar test
+over the discordant episodes of all pairs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from readjax import tasks
+from readjax.lab import main_table as mt
+from readjax.lab import paper
+from readjax.lab.paired import counts, sign_test_p
+from readjax.tables import of_suite, success_chart, suite_note
+
+ROWS = (mt.READ_ROW, mt.RETRIEVAL_ROW, mt.DET_ROW)
+Trainings = dict[str, list[tuple[str, dict[str, dict]]]]  # row -> [(run, task -> result)], one per training
+
+
+def split_runs(names: str) -> list[str]:
+    """The run names of a comma-separated list (``--main``'s READ_RUNS / DET_RUNS)."""
+    runs = [n.strip() for n in names.split(",")]
+    if not all(runs):
+        raise ValueError(f"--main: an empty run name in {names!r}")
+    if len(set(runs)) < len(runs):
+        raise ValueError(f"--main: a run named twice in {names!r}: each training counts once")
+    return runs
+
+
+def select_trainings(results: list[dict], read_runs: list[str], det_runs: list[str],
+                     refinement: tuple[str, int]) -> tuple[Trainings, list[str]]:
+    """Each training's cells, chosen by :func:`main_table.select` run by run (READ's trainings fill
+    the READ and retrieval-only rows, Deterministic's the Deterministic row), and its notes."""
+    out: Trainings = {row: [] for row in ROWS}
+    notes: list[str] = []
+    for run in read_runs:
+        rows, run_notes = mt.select(results, run, None, refinement)
+        out[mt.READ_ROW].append((run, rows[mt.READ_ROW]))
+        out[mt.RETRIEVAL_ROW].append((run, rows[mt.RETRIEVAL_ROW]))
+        notes += run_notes
+    for run in det_runs:
+        rows, run_notes = mt.select(results, None, run, refinement)
+        out[mt.DET_ROW].append((run, rows[mt.DET_ROW]))
+        notes += run_notes
+    return out, notes
+
+
+def common_tasks(trainings: Trainings) -> list[str]:
+    """The task codes every READ training was measured on at N = 100 (``Avg (k)``'s tasks)."""
+    have = [{tasks.code_of(t) for t in cells} for _, cells in trainings[mt.READ_ROW]]
+    return [c for c in tasks.AVG16 if all(c in h for h in have)]
+
+
+def training_rates(cells: dict[str, dict], measured: list[str]) -> dict[str, float]:
+    """One training's row: task code -> success %, with its own Avg12 / Avg16 / ``Avg (k)`` where it
+    has every member task."""
+    return mt.with_averages({tasks.code_of(t): 100.0 * r["success_rate"] for t, r in cells.items()}, measured)
+
+
+def summary(trainings: Trainings, measured: list[str]) -> dict[str, dict[str, tuple[float, float, float, int]]]:
+    """Row -> column -> (mean, min, max, how many trainings have it) over the row's trainings."""
+    out = {}
+    for row, runs in trainings.items():
+        tables = [training_rates(cells, measured) for _, cells in runs]
+        cols = {c for t in tables for c in t}
+        out[row] = {c: (float(np.mean(v)), min(v), max(v), len(v))
+                    for c in cols for v in [[t[c] for t in tables if c in t]]}
+    return out
+
+
+def spread(mean: float, lo: float, hi: float, k: int, total: int) -> str:
+    """``84.3 (79-91)``: a mean over trainings, its range, and ``n=k`` where only k of ``total`` have it."""
+    text = f"{mean:.1f}" + (f" ({lo:.0f}-{hi:.0f})" if k > 1 else "")
+    return text + (f" n={k}" if k < total else "")
+
+
+def pooled(pairs: list[tuple[str, dict, dict]], what: str, skipped: list[str]) -> str:
+    """``+wins / -losses, p=..., k pairs``: one exact McNemar test over the discordant episodes of
+    every pair (label, a, b) run on the same test episodes; a pair whose episodes differ is left out
+    and said in ``skipped``."""
+    wins = losses = used = 0
+    for label, a, b in pairs:
+        if not a.get("seeds") or a.get("seeds") != b.get("seeds") or tasks.suite_of(a) != tasks.suite_of(b):
+            skipped.append(f"{label}, {what}: not the same test episodes (the seeds of `{a['_file']}` and "
+                           f"`{b['_file']}` differ)")
+            continue
+        w, lo, _ = counts(a["success"], b["success"])
+        wins, losses, used = wins + w, losses + lo, used + 1
+    if not used:
+        return "–"
+    return f"+{wins} / -{losses}, p={sign_test_p(wins, losses):.2g}, {used} pair{'s' if used > 1 else ''}"
+
+
+def paired_lines(trainings: Trainings) -> list[str]:
+    """The pooled paired tests per task, and the pairs left out."""
+    reads, rets, dets = (trainings[row] for row in ROWS)
+    out = ["Paired per task, pooled over trainings (exact McNemar on the discordant episodes of every pair on the "
+           "same test episodes: READ N = 100 against N = 0 of the same training; READ's i-th training against "
+           "Deterministic's i-th, in the order named; episodes only the first solves / only the second, two-sided p, "
+           "how many pairs):", "",
+           "| task | READ N=100 vs N=0 | READ N=100 vs Deterministic |", "|---|---|---|"]
+    skipped: list[str] = []
+    for code in tasks.AVG16:
+        task = tasks.canonical_name(code)
+        if not any(task in cells for _, cells in reads):
+            continue
+        vs_retrieval = [(f"`{run}`", cells[task], ret[task]) for (run, cells), (_, ret) in zip(reads, rets)
+                        if task in cells and task in ret]
+        vs_det = [(f"`{run}` / `{det_run}`", cells[task], det[task]) for (run, cells), (det_run, det) in zip(reads, dets)
+                  if task in cells and task in det]
+        out.append(f"| {code} | {pooled(vs_retrieval, f'{code} N=100 vs N=0', skipped)} | "
+                   f"{pooled(vs_det, f'{code} vs Deterministic', skipped)} |")
+    out.append("")
+    unmatched = [f"`{run}`" for run, _ in (reads[len(dets):] if len(reads) > len(dets) else dets[len(reads):])]
+    if unmatched:
+        out += ["Not paired against the other role (no training at the same position in its list): "
+                + ", ".join(unmatched) + ".", ""]
+    if skipped:
+        out += ["Pairs left out of the pooled tests:", ""] + [f"- {s}" for s in skipped] + [""]
+    return out
+
+
+def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart: Path | None, preset_name: str,
+          refinement: tuple[str, int], suite: int) -> list[str]:
+    """The main table section over several trainings per role (markdown lines), ``results`` already
+    of suite ``suite``; ``chart``: where to draw the means' bars."""
+    trainings, notes = select_trainings(results, read_runs, det_runs, refinement)
+    filled = {run for row in ROWS for run, cells in trainings[row] if cells}
+    empty = [run for run in read_runs + det_runs if run not in filled]
+    if empty:
+        raise ValueError(f"--main: no evaluation of run(s) {', '.join(repr(r) for r in empty)} "
+                         f"qualifies (READ: SPE top-1, N = 0, or N = 100 with the {preset_name} preset's refinement "
+                         f"{refinement[0]} x {refinement[1]} rounds; Deterministic: 'direct')")
+    measured = common_tasks(trainings)
+    means = summary(trainings, measured)
+    paper_row = mt.with_averages(dict(paper.READ_TABLE7_A), measured)
+    avg_cols = [c for c in ("Avg12", "Avg16") if c in paper_row or any(c in m for m in means.values())]
+    avg_cols += [c for c in paper_row if c.startswith("Avg (")]
+    cols = list(tasks.AVG16) + avg_cols
+    total = {row: len(runs) for row, runs in trainings.items()}
+    mean_label = {row: f"{row}: mean of {total[row]} trainings" if total[row] > 1 else f"{row}: `{runs[0][0]}`"
+                  for row, runs in trainings.items()}
+    unverified = {(row, run, tasks.code_of(t)) for row in ROWS for run, cells in trainings[row]
+                  for t, r in cells.items() if not r.get("_verified", False)}
+    marked = {(row, c) for row, _, c in unverified}
+    position = {run: i for i, run in enumerate(read_runs + det_runs)}
+    order = lambda u: (ROWS.index(u[0]), position[u[1]], tasks.AVG16.index(u[2]))  # noqa: E731
+    out = [f"## Main table (the paper's layout), suite {suite}", "", suite_note(suite), "",
+           f"READ is each of the trainings {', '.join(f'`{r}`' for r in read_runs)} (one per `train.seed`) on each "
+           f"task at N = 100 with the {preset_name} preset's refinement (`sde.update={refinement[0]}`, "
+           f"`sde.rounds={refinement[1]}`), on clean test images with SPE top-1 retrieval; retrieval only is the "
+           f"same trainings at N = 0; Deterministic is the trainings {', '.join(f'`{r}`' for r in det_runs)}. "
+           "A cell is the mean success % over the trainings that have the task (each over its test episodes), "
+           "their range in brackets, and `n=k` where only k of the row's trainings have it; – = not measured yet. "
+           "Avg12 / Avg16 are the mean (and range) over trainings of each training's own average, which a "
+           "training has once all its tasks are measured; `Avg (k)` the same over the k tasks every READ "
+           "training has been measured on, the paper's row over the same tasks. Each training's own row: "
+           "below.", "",
+           "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for row in ROWS:
+        m = means[row]
+        out.append(f"| {mean_label[row]} | " + " | ".join(
+            (spread(*m[c], total[row]) + ("‡" if (row, c) in marked else "")) if c in m else "–" for c in cols) + " |")
+    out += [f"| {paper.READ_LABEL} | " + " | ".join(f"{paper_row[c]:.1f}" if c in paper_row else "–" for c in cols)
+            + " |", ""]
+    out += ["Each training's row (success % over the task's test episodes):", "",
+            "| training | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    labels: dict[str, dict[str, dict]] = {}
+    for row in ROWS:
+        for run, cells in trainings[row]:
+            r = training_rates(cells, measured)
+            labels[f"{row}: `{run}`"] = cells
+            out.append(f"| {row}: `{run}` | " + " | ".join(
+                (f"{r[c]:.1f}" + ("‡" if (row, run, c) in unverified else "")) if c in r else "–" for c in cols) + " |")
+    out.append("")
+    if unverified:
+        out += ["‡ ran on a test split with no 100 % ground-truth replay on record (`results/<task>/verify/"
+                "test_<fingerprint>.json`, written by `experiments.verify --results`): not a result until it has one: "
+                + ", ".join(f"{row} `{run}` {c}" for row, run, c in sorted(unverified, key=order)) + ".", ""]
+    else:
+        out += ["Every cell ran on a test split whose own ground truth replayed at 100 % through the evaluation "
+                "path (records: `results/<task>/verify/test_<fingerprint>.json`, matched by the split's content "
+                "hash).", ""]
+    if chart is not None:
+        bars = {mean_label[row]: {c: v[0] for c, v in means[row].items()} for row in ROWS}
+        success_chart({**bars, paper.READ_LABEL: paper_row}, chart)
+        out += [f"![main table]({chart.name})", ""]
+    out += paired_lines(trainings)
+    out += mt.failure_lines({lb: cells for lb, cells in labels.items() if not lb.startswith(mt.RETRIEVAL_ROW)})
+    out += mt.training_lines(labels)
+    first_run, first_cells = trainings[mt.READ_ROW][0]
+    out += mt.media_lines(first_cells, chart.parent if chart is not None else None, whose=first_run)
+    if notes:
+        out += ["Cells more than one evaluation could fill:", ""] + [f"- {n}" for n in notes] + [""]
+    return out
+
+
+def section(results: list[dict], read_run: str, det_run: str, chart: Path | None = None, preset_name: str = "cpu",
+            suite: int = tasks.SUITE_VERSION) -> list[str]:
+    """The main table section for ``experiments.report --main``: one run name per role
+    (:func:`readjax.lab.main_table.lines`), or comma-separated names of several trainings per role (one
+    per ``train.seed``): :func:`lines` over them."""
+    if "," not in read_run and "," not in det_run:
+        return mt.lines(results, read_run, det_run, chart, preset_name=preset_name, suite=suite)
+    return lines(of_suite(results, suite), split_runs(read_run), split_runs(det_run), chart, preset_name,
+                 mt.refinement_of(preset_name), suite)

@@ -1,0 +1,143 @@
+"""The paper's main table over several trainings per role (experiments.report --main with
+comma-separated runs, readjax.lab.main_table_seeds): each cell's mean, range and count over the
+trainings, the averages over trainings, the pooled paired tests and each training's own row."""
+
+import json
+
+from experiments import _cli
+from experiments import report as report_cli
+from readjax import tasks
+from readjax.lab import paper, readme_tables, verification
+from readjax.lab.report import collect
+from tests.test_main_table import _section, _write
+
+
+def _edit(runs, task, run, name, **fields):
+    f = runs / task / run / "eval" / f"{name}.json"
+    f.write_text(json.dumps(dict(json.loads(f.read_text()), **fields)))
+
+
+def _row(label, cells, cols):
+    return f"| {label} | " + " | ".join(cells.get(c, "–") for c in cols) + " |"
+
+
+def _three_trainings(runs):
+    """Three READ trainings and three Deterministic ones on RT (and PB in some), 10 test episodes."""
+    T, F = True, False
+    read = {"read_s2": ([T] * 9 + [F], [F] * 3 + [T] * 7, [T] * 10),  # RT N=100, RT N=0, PB N=100
+            "read_s2_seed1": ([T] * 7 + [F] * 3, [T] * 2 + [F] * 8, [T] * 8 + [F] * 2),
+            "read_s2_seed2": ([T] * 8 + [F] * 2, [T] * 4 + [F] * 6, None)}
+    for run, (n100, n0, pb) in read.items():
+        _write(runs, "reach_target", run, "spe_N100_now", n100)
+        _write(runs, "reach_target", run, "spe_N0", n0, N=0)
+        if pb is not None:
+            _write(runs, "push_button", run, "spe_N100_now", pb)
+    for run, rt in (("det_s2", [F] * 2 + [T] * 8), ("det_s2_seed1", [T] * 6 + [F] * 4),
+                    ("det_s2_seed2", [T] * 5 + [F] * 5)):
+        _write(runs, "reach_target", run, "direct", rt, method="deterministic", N=None)
+    _write(runs, "push_button", "det_s2_seed1", "direct", [T] * 4 + [F] * 6, method="deterministic", N=None)
+    _edit(runs, "reach_target", "det_s2_seed2", "direct", seeds=list(range(10, 20)))  # other episodes: not paired
+    verification.write(runs, {"task": "reach_target", "split": "test", "dataset_fingerprint": "fp-reach_target",
+                              "episodes": 10, "success_rate": 1.0})
+
+
+READS, DETS = "read_s2,read_s2_seed1,read_s2_seed2", "det_s2,det_s2_seed1,det_s2_seed2"
+
+
+def test_several_trainings_per_role_give_each_cell_their_mean_range_and_count(tmp_path):
+    runs = tmp_path / "results"
+    _three_trainings(runs)
+    other_suite = 1 if tasks.SUITE_VERSION != 1 else 2  # another suite's result fills nothing
+    _write(runs, "pick_up_cup", "read_s2", "spe_N100_now", [True] * 10)
+    _edit(runs, "pick_up_cup", "read_s2", "spe_N100_now", suite=other_suite)
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", READS, DETS]) == 0
+    section = _section(out)
+    cols = list(tasks.AVG16) + ["Avg12", "Avg16", "Avg (1)"]  # PB is not in every READ training: RT only
+    assert "| method | " + " | ".join(cols) + " |" in section
+    assert _row("READ (N=100): mean of 3 trainings",
+                {"RT": "80.0 (70-90)", "PB": "90.0 (80-100) n=2‡", "Avg (1)": "80.0 (70-90)"}, cols) in section
+    assert _row("retrieval only (N=0): mean of 3 trainings",
+                {"RT": "43.3 (20-70)", "Avg (1)": "43.3 (20-70)"}, cols) in section
+    assert _row("Deterministic: mean of 3 trainings",
+                {"RT": "63.3 (50-80)", "PB": "40.0 n=1‡", "Avg (1)": "63.3 (50-80)"}, cols) in section
+    assert next(ln for ln in section.splitlines() if ln.startswith(f"| {paper.READ_LABEL}")).endswith(
+        "| 88.8 | 70.2 | 99.0 |")  # the paper's row as it is, its Avg (1) over RT
+    # pooled over the trainings: RT N=100 vs N=0 +3/-1, +5/-0, +4/-0; vs Deterministic +2/-1, +1/-0 and the
+    # third pair left out (other episodes); PB only in the second pair
+    assert "| RT | +12 / -1, p=0.0034, 3 pairs | +3 / -1, p=0.62, 2 pairs |" in section
+    assert "| PB | – | +4 / -0, p=0.12, 1 pair |" in section
+    assert "- `read_s2_seed2` / `det_s2_seed2`, RT vs Deterministic: not the same test episodes" in section
+    assert "not a result until it has one: READ (N=100) `read_s2` PB, READ (N=100) `read_s2_seed1` PB, " \
+           "Deterministic `det_s2_seed1` PB." in section
+
+
+def test_each_trainings_own_row_stays_below_the_means(tmp_path):
+    runs = tmp_path / "results"
+    _three_trainings(runs)
+    # read_s2_seed1's RT: the setting chosen on its validation split fills its cell before the preset's
+    _write(runs, "reach_target", "read_s2_seed1", "spe_N100_chosen", [True] * 10, refine_update="renoise", rounds=1)
+    _edit(runs, "reach_target", "read_s2_seed1", "spe_N100_chosen", chosen_on="val",
+          choice={"chosen": {"rounds": 1, "refine": "renoise", "candidates": 1}})
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", READS, DETS]) == 0
+    section = _section(out)
+    per_training = section.split("Each training's row")[1].split("‡ ran on")[0]
+    cols = list(tasks.AVG16) + ["Avg12", "Avg16", "Avg (1)"]
+    expected = [
+        _row("READ (N=100): `read_s2`", {"RT": "90.0", "PB": "100.0‡", "Avg (1)": "90.0"}, cols),
+        _row("READ (N=100): `read_s2_seed1`", {"RT": "100.0", "PB": "80.0‡", "Avg (1)": "100.0"}, cols),
+        _row("READ (N=100): `read_s2_seed2`", {"RT": "80.0", "Avg (1)": "80.0"}, cols),
+        _row("retrieval only (N=0): `read_s2`", {"RT": "70.0", "Avg (1)": "70.0"}, cols),
+        _row("retrieval only (N=0): `read_s2_seed1`", {"RT": "20.0", "Avg (1)": "20.0"}, cols),
+        _row("retrieval only (N=0): `read_s2_seed2`", {"RT": "40.0", "Avg (1)": "40.0"}, cols),
+        _row("Deterministic: `det_s2`", {"RT": "80.0", "Avg (1)": "80.0"}, cols),
+        _row("Deterministic: `det_s2_seed1`", {"RT": "60.0", "PB": "40.0‡", "Avg (1)": "60.0"}, cols),
+        _row("Deterministic: `det_s2_seed2`", {"RT": "50.0", "Avg (1)": "50.0"}, cols)]
+    assert [ln for ln in per_training.splitlines() if ln.startswith("| ") and "`" in ln] == expected
+    assert _row("READ (N=100): mean of 3 trainings", {"RT": "90.0 (80-100)", "PB": "90.0 (80-100) n=2‡",
+                                                      "Avg (1)": "90.0 (80-100)"}, cols) in section
+    assert "spe_N100_now.json` also qualifies" in section
+    assert "| RT | +15 / -1, p=0.00052, 3 pairs | +6 / -1, p=0.12, 2 pairs |" in section
+
+
+def test_averages_over_trainings_are_each_trainings_own_average(tmp_path):
+    """Avg12 / Avg16: a training's average only where it has every member task, then their mean and
+    range over the trainings that have one (not the mean of the per-task means)."""
+    runs = tmp_path / "results"
+    for run, outcome in (("read_s2", [True, True]), ("read_s2_seed1", [True, False]),
+                         ("read_s2_seed2", [False, False])):
+        for code in tasks.AVG16:
+            if (run, code) != ("read_s2_seed2", "SB"):
+                _write(runs, tasks.canonical_name(code), run, "spe_N100_now", outcome)
+    for run in ("det_s2", "det_s2_seed1"):
+        _write(runs, "reach_target", run, "direct", [True, False], method="deterministic", N=None)
+    out = tmp_path / "docs" / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", READS,
+                                      "det_s2,det_s2_seed1"]) == 0
+    section = _section(out)
+    read_row = next(ln for ln in section.splitlines() if ln.startswith("| READ (N=100): mean of 3 trainings"))
+    assert "| Avg12 | Avg16 | Avg (15) |" in section  # SB is not in every READ training
+    # SB, Avg12 (100, 50, 0), Avg16 (100, 50: the third has no SB; the mean of the per-task means would
+    # be 51.6), Avg (15) (100, 50, 0)
+    assert read_row.endswith("| 75.0 (50-100) n=2‡ | 50.0 (0-100) | 75.0 (50-100) n=2 | 50.0 (0-100) |")
+    assert "Not paired against the other role (no training at the same position in its list): `read_s2_seed2`." \
+        in section
+    # README's compact table: the same averages over trainings
+    readme = readme_tables.main_lines(collect(str(runs)), READS, "det_s2,det_s2_seed1", tasks.SUITE_VERSION)
+    assert f"| READ, N = 100 | {tasks.SUITE_VERSION} | 50.0 (0-100)‡ | 75.0 (50-100) n=2‡ | `read_s2`, " \
+           "`read_s2_seed1`, `read_s2_seed2` |" in readme
+    assert f"| Deterministic | {tasks.SUITE_VERSION} | – | – | `det_s2`, `det_s2_seed1` |" in readme
+
+
+def test_a_training_list_naming_a_run_without_results_or_twice_is_refused(tmp_path, capsys):
+    runs = tmp_path / "results"
+    _three_trainings(runs)
+    out = tmp_path / "results.md"
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main",
+                                      "read_s2,read_s2_sed1", DETS]) == 2
+    assert "no evaluation of run(s) 'read_s2_sed1' qualifies" in capsys.readouterr().err
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_s2,read_s2", DETS]) == 2
+    assert "a run named twice" in capsys.readouterr().err
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_s2,", DETS]) == 2
+    assert "an empty run name" in capsys.readouterr().err
