@@ -102,6 +102,10 @@ def parser() -> argparse.ArgumentParser:
                         f"sde.update)")
     p.add_argument("--choice-candidates", nargs="+", type=_cli.positive_int, default=[1], metavar="C",
                    help="the choice grid's --candidates values (SPE's top C refined; 1: the paper's top-1)")
+    p.add_argument("--fixed-refinement", nargs="+", default=[], metavar="LABEL",
+                   help="READ runs (a method's name or a --variant's label) that refine with their own config's "
+                        "setting, chosen on nothing: a recipe reported as it is, e.g. the paper's row "
+                        "(--variant read_paper read sde.update=renoise sde.rounds=1 ... --fixed-refinement read_paper)")
     p.add_argument("--image-size", type=_cli.positive_int, default=64)
     p.add_argument("--gen-batch", type=_cli.positive_int, default=32, help="episodes simulated together")
     p.add_argument("--read-N", type=int, nargs="+", default=[0, 100], help="READ's refinement steps to evaluate")
@@ -200,7 +204,7 @@ def main(argv=None) -> int:
         overrides=tuple(args.set), run_names=run_names,
         media_episodes=args.media_episodes, diagnose_below=args.diagnose_below, variants=variants,
         protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness,
-        val_episodes=args.val_episodes, choice_grid=grid).validate()
+        val_episodes=args.val_episodes, choice_grid=grid, fixed_refinement=tuple(args.fixed_refinement)).validate()
     try:
         steps = pipeline.plan_steps(cfg)
     except PipelineError as e:

@@ -72,6 +72,23 @@ def test_no_validation_steps_where_nothing_chooses(tmp_path, kw):
         _cfg(tmp_path, val_episodes=-1)
 
 
+def test_a_fixed_refinement_run_chooses_nothing_beside_one_that_chooses(tmp_path):
+    """The paper's recipe as its own row: a variant in --fixed-refinement refines with its own config's
+    setting, evaluated on the test split with no choice, while READ's other runs still choose."""
+    paper = ("read_paper", "read", ("sde.update=renoise", "sde.rounds=1"))
+    steps = pipeline.plan_steps(_cfg(tmp_path, methods=("read", "read_paper"), variants=(paper,),
+                                     fixed_refinement=("read_paper",)))
+    choosers = [s.label for s in steps if s.kind == "choose"]
+    assert choosers == ["choose read's refinement on val (4 settings)"]
+    runs = {s.label: s.argv for s in steps if s.kind == "evaluate"}
+    assert "--choice" in runs["evaluate read --N 100"] and "--choice" not in runs["evaluate read_paper --N 100"]
+    assert not any("--split" in a and "read_paper" in " ".join(a) for a in runs.values())
+    with pytest.raises(ValueError, match="--fixed-refinement deterministic: not a READ run"):
+        _cfg(tmp_path, fixed_refinement=("deterministic",))
+    with pytest.raises(ValueError, match="--fixed-refinement read_o: not a READ run"):
+        _cfg(tmp_path, fixed_refinement=("read_o",))
+
+
 class FakeRunner:
     """Stands in for the commands (the choice: the real experiments.choose, in this process); READ's
     val success per (rounds, refine) is ``val_rates``, its test success 1."""

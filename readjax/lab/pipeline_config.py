@@ -114,12 +114,19 @@ class PipelineConfig:
     # is evaluated with its preset's refinement)
     val_episodes: int = 100
     choice_grid: ChoiceGrid = field(default_factory=ChoiceGrid)
+    # READ runs (labels of ``methods``) that refine with their own config's setting, chosen on nothing:
+    # a recipe reported as it is, e.g. the paper's (renoise, one round)
+    fixed_refinement: tuple[str, ...] = ()
 
     def validate(self) -> "PipelineConfig":
         names = tuple(tasks.canonical_name(t) for t in self.tasks)
         if self.val_episodes < 0:
             raise ValueError(f"--val-episodes must be >= 0, got {self.val_episodes}")
         self.choice_grid.validate()
+        for label in self.fixed_refinement:
+            if label not in self.methods or self.method_of(label) != "read":
+                raise ValueError(f"--fixed-refinement {label}: not a READ run of this grid (its methods and variants: "
+                                 f"{', '.join(self.methods)})")
         if self.media_episodes < 0:
             raise ValueError(f"--media-episodes must be >= 0, got {self.media_episodes}")
         if not 0.0 <= self.diagnose_below <= 100.0:
@@ -166,8 +173,9 @@ class PipelineConfig:
 
     def chooses(self, label: str) -> bool:
         """Whether the ``label`` run chooses its refinement on the validation split: a READ run, with
-        validation episodes asked for and a largest --read-N that refines."""
-        return self.val_episodes > 0 and self.method_of(label) == "read" and max(self.read_N) > 0
+        validation episodes asked for and a largest --read-N that refines, not in ``fixed_refinement``."""
+        return (self.val_episodes > 0 and self.method_of(label) == "read" and max(self.read_N) > 0
+                and label not in self.fixed_refinement)
 
     def run_name(self, label: str) -> str:
         """The run folder of a method or variant on each task (``--run-name``; default its label)."""
