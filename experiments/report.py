@@ -50,6 +50,11 @@ def parser() -> argparse.ArgumentParser:
                         "the mean and range of each training's own average, every training's row below, and the "
                         "paired tests pooled over the trainings (READ's i-th against Deterministic's i-th, in "
                         "the lists' order; N = 100 against N = 0 of the same training)")
+    p.add_argument("--paper-recipe", default=None, metavar="RUNS",
+                   help="with --main: a row of READ trained with the paper's recipe (every cpu-preset departure "
+                        "reverted; run(s) of the pipeline's --fixed-refinement, comma-separated for several "
+                        "trainings), at N = 100 refined with its own config's update and rounds, chosen on nothing; "
+                        "paired against READ's i-th training")
     p.add_argument("--claims", nargs="+", default=None, metavar="ROLE=RUN",
                    help="test the paper's claims (READ above each baseline, READ-O above READ-L, refinement above "
                         "retrieval, recovery from a poor retrieval, robustness to noise and brightness) with paired "
@@ -82,10 +87,13 @@ def main(argv=None) -> None:
         raise ValueError(f"--claims takes ROLE=RUN pairs, got {args.claims}")
     roles = {**{role: role for role in claims.ROLES}, **dict(c.split("=", 1) for c in args.claims or ())}
     sections = []
+    if args.paper_recipe and not args.main:
+        raise ValueError("--paper-recipe is a row of the main table: give --main READ_RUNS DET_RUNS too")
     if args.main:
         read_run, det_run = args.main
         sections.append(lambda results, chart: main_table_seeds.section(results, read_run, det_run, chart,
-                                                                preset_name=args.main_preset))
+                                                                preset_name=args.main_preset,
+                                                                recipe_run=args.paper_recipe))
     claims_plot = Path(args.out).with_name(Path(args.out).stem + "_claims.png")
     if args.claims is not None:
         sections.append(lambda results, chart: claims.lines(results, roles, preset_name=args.main_preset,

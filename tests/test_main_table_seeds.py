@@ -141,3 +141,27 @@ def test_a_training_list_naming_a_run_without_results_or_twice_is_refused(tmp_pa
     assert "a run named twice" in capsys.readouterr().err
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--main", "read_s2,", DETS]) == 2
     assert "an empty run name" in capsys.readouterr().err
+
+
+def test_the_papers_recipe_is_a_row_of_its_own_paired_against_read(tmp_path):
+    """--paper-recipe: the run's N = 100 evaluation refined with its own config (here cold x 1) fills the
+    row; one refined with a choice, or with another setting, does not; READ is paired against it."""
+    runs = tmp_path / "results"
+    T, F = True, False
+    _write(runs, "reach_target", "read_s2", "spe_N100_now", [T] * 9 + [F])
+    _write(runs, "reach_target", "read_s2", "spe_N0", [F] * 10, N=0)
+    _write(runs, "reach_target", "det_s2", "direct", [F] * 10, method="deterministic", N=None)
+    _write(runs, "reach_target", "read_paper", "b_own", [T] * 5 + [F] * 5, refine_update="cold", rounds=1)
+    _write(runs, "reach_target", "read_paper", "a_chosen", [T] * 10, refine_update="cold", rounds=1)
+    _edit(runs, "reach_target", "read_paper", "a_chosen", chosen_on="val", choice={"chosen": {}})
+    _write(runs, "reach_target", "read_paper", "c_preset", [F] * 10)  # the cpu preset's refinement: not its own
+    out = tmp_path / "results.md"
+    args = ["--runs", str(runs), "--out", str(out), "--main", "read_s2", "det_s2"]
+    assert _cli.run(report_cli.main, [*args, "--paper-recipe", "read_paper"]) == 0
+    section = _section(out)
+    assert "| READ, the paper's recipe (N=100): `read_paper` | – | 50.0‡ |" in section
+    assert "| READ (N=100): `read_s2` | – | 90.0‡ |" in section
+    assert "| READ N=100 vs Deterministic | READ N=100 vs the paper's recipe |" in section
+    assert "| RT | +9 / -0, p=0.0039, 1 pair | +9 / -0, p=0.0039, 1 pair | +4 / -0, p=0.12, 1 pair |" in section
+    assert _cli.run(report_cli.main, [*args, "--paper-recipe", "nope"]) == 2  # a run with no such evaluation
+    assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--paper-recipe", "read_paper"]) == 2

@@ -23,9 +23,11 @@ from readjax import tasks
 from readjax.lab import main_table as mt
 from readjax.lab import paper
 from readjax.lab.paired import counts, sign_test_p
+from readjax.lab.result_record import is_eval
 from readjax.tables import of_suite, success_chart, suite_note
 
 ROWS = (mt.READ_ROW, mt.RETRIEVAL_ROW, mt.DET_ROW)
+RECIPE_ROW = "READ, the paper's recipe (N=100)"  # --paper-recipe: refined with its own config, chosen on nothing
 Trainings = dict[str, list[tuple[str, dict[str, dict]]]]  # row -> [(run, task -> result)], one per training
 
 
@@ -39,11 +41,24 @@ def split_runs(names: str) -> list[str]:
     return runs
 
 
+def recipe_cells(results: list[dict], run: str) -> dict[str, dict]:
+    """The ``run``'s READ evaluations at N = 100 on clean test images, SPE top-1, refined with the
+    run's own config (``sde.update`` x ``sde.rounds``) and not with a choice: task -> the first by file."""
+    cells: dict[str, dict] = {}
+    for r in sorted(results, key=lambda r: r["_file"]):
+        if r["_run_name"] == run and "chosen_on" not in r and is_eval(r, "read", 100):
+            cells.setdefault(r["task"], r)
+    return cells
+
+
 def select_trainings(results: list[dict], read_runs: list[str], det_runs: list[str],
-                     refinement: tuple[str, int]) -> tuple[Trainings, list[str]]:
+                     refinement: tuple[str, int], recipe_runs: list[str] = ()) -> tuple[Trainings, list[str]]:
     """Each training's cells, chosen by :func:`main_table.select` run by run (READ's trainings fill
-    the READ and retrieval-only rows, Deterministic's the Deterministic row), and its notes."""
+    the READ and retrieval-only rows, Deterministic's the Deterministic row; ``recipe_runs`` the paper's
+    recipe row, :func:`recipe_cells`), and its notes."""
     out: Trainings = {row: [] for row in ROWS}
+    if recipe_runs:
+        out[RECIPE_ROW] = [(run, recipe_cells(results, run)) for run in recipe_runs]
     notes: list[str] = []
     for run in read_runs:
         rows, run_notes = mt.select(results, run, None, refinement)
@@ -104,13 +119,16 @@ def pooled(pairs: list[tuple[str, dict, dict]], what: str, skipped: list[str]) -
 
 
 def paired_lines(trainings: Trainings) -> list[str]:
-    """The pooled paired tests per task, and the pairs left out."""
+    """The pooled paired tests per task (and, with a paper's-recipe row, READ's i-th training against
+    the recipe's i-th), and the pairs left out."""
     reads, rets, dets = (trainings[row] for row in ROWS)
+    recipe = trainings.get(RECIPE_ROW)
     out = ["Paired per task, pooled over trainings (exact McNemar on the discordant episodes of every pair on the "
            "same test episodes: READ N = 100 against N = 0 of the same training; READ's i-th training against "
            "Deterministic's i-th, in the order named; episodes only the first solves / only the second, two-sided p, "
            "how many pairs):", "",
-           "| task | READ N=100 vs N=0 | READ N=100 vs Deterministic |", "|---|---|---|"]
+           "| task | READ N=100 vs N=0 | READ N=100 vs Deterministic |"
+           + (" READ N=100 vs the paper's recipe |" if recipe else ""), "|---|---|---|" + ("---|" if recipe else "")]
     skipped: list[str] = []
     for code in tasks.AVG16:
         task = tasks.canonical_name(code)
@@ -120,8 +138,13 @@ def paired_lines(trainings: Trainings) -> list[str]:
                         if task in cells and task in ret]
         vs_det = [(f"`{run}` / `{det_run}`", cells[task], det[task]) for (run, cells), (det_run, det) in zip(reads, dets)
                   if task in cells and task in det]
-        out.append(f"| {code} | {pooled(vs_retrieval, f'{code} N=100 vs N=0', skipped)} | "
-                   f"{pooled(vs_det, f'{code} vs Deterministic', skipped)} |")
+        line = (f"| {code} | {pooled(vs_retrieval, f'{code} N=100 vs N=0', skipped)} | "
+                f"{pooled(vs_det, f'{code} vs Deterministic', skipped)} |")
+        if recipe:
+            vs_recipe = [(f"`{run}` / `{other}`", cells[task], rec[task])
+                         for (run, cells), (other, rec) in zip(reads, recipe) if task in cells and task in rec]
+            line += f" {pooled(vs_recipe, f'{code} vs the paper' + chr(39) + 's recipe', skipped)} |"
+        out.append(line)
     out.append("")
     unmatched = [f"`{run}`" for run, _ in (reads[len(dets):] if len(reads) > len(dets) else dets[len(reads):])]
     if unmatched:
@@ -133,12 +156,14 @@ def paired_lines(trainings: Trainings) -> list[str]:
 
 
 def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart: Path | None, preset_name: str,
-          refinement: tuple[str, int], suite: int) -> list[str]:
+          refinement: tuple[str, int], suite: int, recipe_runs: list[str] = ()) -> list[str]:
     """The main table section over several trainings per role (markdown lines), ``results`` already
-    of suite ``suite``; ``chart``: where to draw the means' bars."""
-    trainings, notes = select_trainings(results, read_runs, det_runs, refinement)
-    filled = {run for row in ROWS for run, cells in trainings[row] if cells}
-    empty = [run for run in read_runs + det_runs if run not in filled]
+    of suite ``suite``; ``chart``: where to draw the means' bars; ``recipe_runs``: trainings of the
+    paper's recipe, a row of their own."""
+    trainings, notes = select_trainings(results, read_runs, det_runs, refinement, list(recipe_runs))
+    rows = tuple(trainings)
+    filled = {run for row in rows for run, cells in trainings[row] if cells}
+    empty = [run for run in read_runs + det_runs + list(recipe_runs) if run not in filled]
     if empty:
         raise ValueError(f"--main: no evaluation of run(s) {', '.join(repr(r) for r in empty)} "
                          f"qualifies (READ: SPE top-1, N = 0, or N = 100 with the {preset_name} preset's refinement "
@@ -152,11 +177,11 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
     total = {row: len(runs) for row, runs in trainings.items()}
     mean_label = {row: f"{row}: mean of {total[row]} trainings" if total[row] > 1 else f"{row}: `{runs[0][0]}`"
                   for row, runs in trainings.items()}
-    unverified = {(row, run, tasks.code_of(t)) for row in ROWS for run, cells in trainings[row]
+    unverified = {(row, run, tasks.code_of(t)) for row in rows for run, cells in trainings[row]
                   for t, r in cells.items() if not r.get("_verified", False)}
     marked = {(row, c) for row, _, c in unverified}
-    position = {run: i for i, run in enumerate(read_runs + det_runs)}
-    order = lambda u: (ROWS.index(u[0]), position[u[1]], tasks.AVG16.index(u[2]))  # noqa: E731
+    position = {run: i for i, run in enumerate(read_runs + det_runs + list(recipe_runs))}
+    order = lambda u: (rows.index(u[0]), position[u[1]], tasks.AVG16.index(u[2]))  # noqa: E731
     out = [f"## Main table (the paper's layout), suite {suite}", "", suite_note(suite), "",
            f"READ is each of the trainings {', '.join(f'`{r}`' for r in read_runs)} (one per `train.seed`) on each "
            f"task at N = 100 with the {preset_name} preset's refinement (`sde.update={refinement[0]}`, "
@@ -167,9 +192,10 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
            "Avg12 / Avg16 are the mean (and range) over trainings of each training's own average, which a "
            "training has once all its tasks are measured; `Avg (k)` the same over the k tasks every READ "
            "training has been measured on, the paper's row over the same tasks. Each training's own row: "
-           "below.", "",
+           "below." + (f" The paper's recipe: {', '.join(f'`{r}`' for r in recipe_runs)} at N = 100, refined with "
+                       "its own config's update and rounds, chosen on nothing." if recipe_runs else ""), "",
            "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
-    for row in ROWS:
+    for row in rows:
         m = means[row]
         out.append(f"| {mean_label[row]} | " + " | ".join(
             (spread(*m[c], total[row]) + ("‡" if (row, c) in marked else "")) if c in m else "–" for c in cols) + " |")
@@ -178,7 +204,7 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
     out += ["Each training's row (success % over the task's test episodes):", "",
             "| training | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     labels: dict[str, dict[str, dict]] = {}
-    for row in ROWS:
+    for row in rows:
         for run, cells in trainings[row]:
             r = training_rates(cells, measured)
             labels[f"{row}: `{run}`"] = cells
@@ -194,7 +220,7 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
                 "path (records: `results/<task>/verify/test_<fingerprint>.json`, matched by the split's content "
                 "hash).", ""]
     if chart is not None:
-        bars = {mean_label[row]: {c: v[0] for c, v in means[row].items()} for row in ROWS}
+        bars = {mean_label[row]: {c: v[0] for c, v in means[row].items()} for row in rows}
         success_chart({**bars, paper.READ_LABEL: paper_row}, chart)
         out += [f"![main table]({chart.name})", ""]
     out += paired_lines(trainings)
@@ -208,11 +234,11 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
 
 
 def section(results: list[dict], read_run: str, det_run: str, chart: Path | None = None, preset_name: str = "cpu",
-            suite: int = tasks.SUITE_VERSION) -> list[str]:
+            suite: int = tasks.SUITE_VERSION, recipe_run: str | None = None) -> list[str]:
     """The main table section for ``experiments.report --main``: one run name per role
     (:func:`readjax.lab.main_table.lines`), or comma-separated names of several trainings per role (one
-    per ``train.seed``): :func:`lines` over them."""
-    if "," not in read_run and "," not in det_run:
+    per ``train.seed``), or a paper's-recipe row (``recipe_run``, comma-separated too): :func:`lines`."""
+    if "," not in read_run and "," not in det_run and not recipe_run:
         return mt.lines(results, read_run, det_run, chart, preset_name=preset_name, suite=suite)
     return lines(of_suite(results, suite), split_runs(read_run), split_runs(det_run), chart, preset_name,
-                 mt.refinement_of(preset_name), suite)
+                 mt.refinement_of(preset_name), suite, split_runs(recipe_run) if recipe_run else [])
