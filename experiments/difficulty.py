@@ -21,7 +21,6 @@ examples:
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 
 from experiments import _cli
@@ -67,7 +66,7 @@ def _prepare(task: str, args) -> None:
     from readjax.data.generate import GenerateConfig, generate
     from readjax import tasks
     from readjax.evaluation import replay_ground_truth
-    from readjax.sim.execute import ExecConfig
+    from readjax.sim.execute import execution_record
 
     for split, n in (("train", args.train_episodes), ("test", args.episodes)):
         generate(GenerateConfig(task=task, split=split, episodes=n, out=args.data, batch_size=args.batch_size,
@@ -75,7 +74,7 @@ def _prepare(task: str, args) -> None:
     test = store.load_dataset(store.split_dir(args.data, task, "test"))
     if not verification.is_verified(args.results, task, test.fingerprint, args.episodes):
         on_record = verification.find(args.results, task, test.fingerprint) or {}
-        if args.unverified and on_record.get("execution") == dataclasses.asdict(ExecConfig()):
+        if args.unverified and on_record.get("execution") == execution_record():
             return  # replayed below 100 % on record by this execution path: measured anyway, marked
         record = replay_ground_truth(tasks.make(task), test, batch_size=args.batch_size)
         verification.write(args.results, dict(record, data=str(store.split_dir(args.data, task, "test"))))

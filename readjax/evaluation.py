@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import jax
@@ -23,7 +23,7 @@ from readjax import atomic_write, failure_modes, provenance, stage_folder, table
 from readjax import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
-from readjax.sim.execute import ExecConfig, execute_motions
+from readjax.sim.execute import execute_motions, execution_record
 
 @dataclass(frozen=True)
 class EvalConfig:
@@ -87,7 +87,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
     t_exec = time.time() - t0 - t_plan
     rate = float(np.mean(res["success"]))
     retrieved_pos = _positions(planner.camera, plan["retrieved"])  # where each plan's refinement started
-    gt_pos, gt_rot = (np.asarray(x) for x in motion_lib.decode(planner.camera, jnp.asarray(ds.motion))[:2])
+    gt_pos, gt_rot = motion_lib.world_poses(planner.camera, ds.motion)
     result = {
         "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
         "method": planner.spec.get("method", "read"), "name": name, "split": test_ds.split,
@@ -96,7 +96,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
         "skipped_waypoints_mean": float(np.mean(res["skipped"])), "aborted": int(np.sum(res["aborted"])),
         # mean world-frame distance between the retrieved and the ground-truth end-effector paths
         "retrieval_error_m": float(np.mean(np.linalg.norm(retrieved_pos - gt_pos, axis=-1))),
-        "execution": asdict(ExecConfig()),  # how plans were executed (IK, skipped waypoints)
+        "execution": execution_record(),  # how plans were executed (IK, skipped waypoints)
         "eval_config": {**vars(cfg), "N": n_steps if planner.model.iterative else None, "rounds": rounds,
                         "refine_update": refine_update(planner.model)},
         "configs": planner.spec.get("configs"),
@@ -171,7 +171,7 @@ def replay_ground_truth(env, ds: Dataset, batch_size: int = 32) -> dict:
         "image_size": ds.image_size, "batch_size": batch_size, "format_version": ds.meta.get("format_version"),
         "suite": tasks.suite_of(ds.meta),
         "dataset_fingerprint": ds.fingerprint, "commit": provenance.commit(),
-        "execution": asdict(ExecConfig()),
+        "execution": execution_record(),
         "seconds": {"guard": round(t_guard, 2), "execution": round(time.time() - t0 - t_guard, 2)},
         "versions": provenance.versions(), "machine": provenance.machine(),
     }

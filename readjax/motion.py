@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from readjax import geometry as geo
 from readjax import camera as cam_lib
@@ -78,3 +79,10 @@ def decode(cam: CameraParams, m: jax.Array) -> tuple[jax.Array, jax.Array, jax.A
     pos = cam_lib.unproject_uvz(cam, m[..., 0:3])
     r_world = cam_lib.rotation_to_world(cam, geo.mat_from_rot6d(rot6d(m)))
     return pos, r_world, grip(m)[..., 0]
+
+
+def world_poses(cam: CameraParams, motions) -> tuple[np.ndarray, np.ndarray]:
+    """World end-effector positions (..., T, 3) and rotations (..., T, 3, 3) of motions, as NumPy
+    arrays (what records and failure diagnoses read)."""
+    pos, rot, _ = decode(cam, jnp.asarray(motions))
+    return np.asarray(pos), np.asarray(rot)

@@ -4,7 +4,6 @@ a split of another suite is refused."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import shutil
 
@@ -16,7 +15,7 @@ from readjax import tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
 from readjax.lab import difficulty, difficulty_why, verification
-from readjax.sim.execute import ExecConfig
+from readjax.sim.execute import execution_record
 
 pytestmark = pytest.mark.timeout(900)
 
@@ -82,7 +81,7 @@ def test_no_measurement_without_a_full_replay_on_record(data, tmp_path):
 def test_unverified_measures_a_split_replayed_below_100_percent_and_marks_it(data, tmp_path, capsys):
     test = store.load_dataset(store.split_dir(data / "mirror", TASK, "test"))
     bad = {"task": TASK, "split": "test", "dataset_fingerprint": test.fingerprint, "episodes": 6,
-           "success_rate": 5 / 6, "execution": dataclasses.asdict(ExecConfig())}
+           "success_rate": 5 / 6, "execution": execution_record()}
     verification.write(tmp_path / "bad", bad)
     args = ["--task", "RT", "--data", str(data / "mirror"), "--results", str(tmp_path / "bad"), "--train-episodes",
             "6", "--episodes", "6", "--ranks", "1", "--image-size", "32", "--batch-size", "2"]

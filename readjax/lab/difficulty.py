@@ -13,12 +13,10 @@ with a training split of the same suite version and camera.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import time
 from pathlib import Path
 
-import jax.numpy as jnp
 import numpy as np
 
 from readjax import atomic_write, failure_modes, provenance, retrieval, tasks
@@ -26,7 +24,7 @@ from readjax import motion as motion_lib
 from readjax.data import store
 from readjax.data.guard import check_scene_images
 from readjax.lab import paper, verification
-from readjax.sim.execute import ExecConfig, execute_motions
+from readjax.sim.execute import execute_motions, execution_record
 
 FOLDER = "difficulty"
 RANKS = (1, 3, 10)
@@ -67,13 +65,13 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
     t0 = time.time()
     check_scene_images(env, test)
     order = retrieval.oracle_ranking(test.camera, test.motion, train.motion)
-    gt_pose = _world_poses(test.camera, test.motion)
+    gt_pose = motion_lib.world_poses(test.camera, test.motion)
     cam_origin = np.asarray(test.camera.cam_to_world)[:3, 3]
     by_rank = {}
     for i in ranks:
         idx = order[:, min(i, order.shape[1]) - 1]
         res = execute_motions(env, test.camera, test.scenes, train.motion[idx], batch_size=batch_size)
-        pose = _world_poses(test.camera, train.motion[idx])
+        pose = motion_lib.world_poses(test.camera, train.motion[idx])
         success = res["success"].astype(bool)
         by_rank[str(i)] = {
             "success_rate": float(success.mean()), "success": success.astype(int).tolist(),
@@ -95,7 +93,7 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
         # how the splits were generated: seeds tried, kept, without a valid placement, expert success
         "generation": {split: _generation_summary(store.split_dir(data_root, task, split))
                        for split in ("train", "test")},
-        "execution": dataclasses.asdict(ExecConfig()),  # how plans were executed (IK, skips)
+        "execution": execution_record(),  # how plans were executed (IK, skipped waypoints)
         "seconds": round(time.time() - t0, 2), "versions": provenance.versions(),
         "machine": provenance.machine(), "commit": provenance.commit(),
     }
@@ -103,12 +101,6 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write.write_text(path, json.dumps(record, indent=2))
     return record
-
-
-def _world_poses(cam, motions) -> tuple[np.ndarray, np.ndarray]:
-    """World end-effector positions (B, T, 3) and rotations (B, T, 3, 3) of motions."""
-    pos, rot, _ = motion_lib.decode(cam, jnp.asarray(motions))
-    return np.asarray(pos), np.asarray(rot)
 
 
 def _generation_summary(split_dir: Path) -> dict | None:
@@ -183,7 +175,8 @@ def generation_table(records: dict[str, dict], results=None) -> str:
         if not g:
             continue
         replay = f"{r['episodes']} / {r['episodes']}" if r.get("replay_verified") else "not on record ‡"
-        short = verification.find(results, r["task"], r["test_fingerprint"]) if results and replay[0] == "n" else None
+        short = None if r.get("replay_verified") or not results else verification.find(
+            results, r["task"], r["test_fingerprint"])
         if short and "successes" in short:
             replay = f"{short['successes']} / {short['episodes']} ‡"
         lines.append(f"| {code} | {g['episodes_attempted']} | {g['episodes_kept']} | "

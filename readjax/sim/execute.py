@@ -18,7 +18,7 @@ its image shows.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import jax
 import jax.numpy as jnp
@@ -45,6 +45,12 @@ class ExecConfig:
     # step times the control steps per frame (the rest of a waypoint's iterations converge on the pose
     # alone), so the posture drifts as continuously as the expert's did; False: every iteration pulls
     expert_rate_posture: bool = True
+
+
+def execution_record(cfg: ExecConfig = ExecConfig()) -> dict:
+    """How plans were executed, as records keep it (``execution``): a replay or evaluation compares
+    with another only under the same."""
+    return asdict(cfg)
 
 
 def segment_durations(env) -> tuple[int, ...]:
