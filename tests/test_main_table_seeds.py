@@ -165,3 +165,35 @@ def test_the_papers_recipe_is_a_row_of_its_own_paired_against_read(tmp_path):
     assert "| RT | +9 / -0, p=0.0039, 1 pair | +9 / -0, p=0.0039, 1 pair | +4 / -0, p=0.12, 1 pair |" in section
     assert _cli.run(report_cli.main, [*args, "--paper-recipe", "nope"]) == 2  # a run with no such evaluation
     assert _cli.run(report_cli.main, ["--runs", str(runs), "--out", str(out), "--paper-recipe", "read_paper"]) == 2
+
+
+def test_a_grid_still_running_lists_the_trainings_not_measured_yet(tmp_path):
+    """The pages' current-suite table (pages.GRID) while the grid runs: the trainings measured so far
+    fill the means with n=k, the rest are named as not measured yet, positions still pair READ's i-th with
+    Deterministic's i-th, and the README's compact rows say how many tasks are in."""
+    from readjax.lab import main_table, main_table_seeds
+    runs = tmp_path / "results"
+    T, F = True, False
+    _write(runs, "reach_target", "read_s2", "spe_N100_now", [T] * 9 + [F])
+    _write(runs, "reach_target", "read_s2", "spe_N0", [F] * 10, N=0)
+    _write(runs, "reach_target", "det_s2_seed1", "direct", [F] * 10, method="deterministic", N=None)
+    results = collect(runs)
+    reads, dets = ["read_s2", "read_s2_seed1"], ["det_s2", "det_s2_seed1"]
+    args = (results, reads, dets, None, "cpu", main_table.refinement_of("cpu"), tasks.SUITE_VERSION, ["read_paper"])
+    try:
+        main_table_seeds.lines(*args)
+        raise AssertionError("a finished table refuses trainings with no evaluation")
+    except ValueError as e:
+        assert "read_s2_seed1" in str(e)
+    text = "\n".join(main_table_seeds.lines(*args, in_progress=True))
+    cols = list(tasks.AVG16) + ["Avg12", "Avg16", "Avg (1)"]
+    assert _row("READ (N=100): mean of 2 trainings", {"RT": "90.0 n=1‡", "Avg (1)": "90.0 n=1"}, cols) in text
+    assert _row("Deterministic: mean of 2 trainings", {"RT": "0.0 n=1‡", "Avg (1)": "0.0 n=1"}, cols) in text
+    assert "Still running: no evaluation of `read_s2_seed1`, `det_s2`, `read_paper` yet" in text
+    assert "| RT | +9 / -0, p=0.0039, 1 pair | – | – |" in text  # read_s2 has no det_s2 to pair with
+    grid = {"read": tuple(reads), "deterministic": tuple(dets), "recipe": ("read_paper",)}
+    block = "\n".join(readme_tables.grid_lines(results, grid, tasks.SUITE_VERSION))
+    assert f"| READ, N = 100 | {tasks.SUITE_VERSION} | – | – | `read_s2`, `read_s2_seed1` |" in block
+    assert "Still running: 1 of 16 tasks have a READ training measured, no evaluation yet of `read_s2_seed1`, " \
+           "`det_s2`, `read_paper`" in block
+    assert readme_tables.grid_lines(results, {**grid, "read": ("other",)}, tasks.SUITE_VERSION) == []

@@ -73,9 +73,10 @@ def select_trainings(results: list[dict], read_runs: list[str], det_runs: list[s
 
 
 def common_tasks(trainings: Trainings) -> list[str]:
-    """The task codes every READ training was measured on at N = 100 (``Avg (k)``'s tasks)."""
-    have = [{tasks.code_of(t) for t in cells} for _, cells in trainings[mt.READ_ROW]]
-    return [c for c in tasks.AVG16 if all(c in h for h in have)]
+    """The task codes every READ training measured so far was measured on at N = 100 (``Avg (k)``'s
+    tasks; a training not measured yet does not empty it)."""
+    have = [{tasks.code_of(t) for t in cells} for _, cells in trainings[mt.READ_ROW] if cells]
+    return [c for c in tasks.AVG16 if have and all(c in h for h in have)]
 
 
 def training_rates(cells: dict[str, dict], measured: list[str]) -> dict[str, float]:
@@ -156,15 +157,16 @@ def paired_lines(trainings: Trainings) -> list[str]:
 
 
 def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart: Path | None, preset_name: str,
-          refinement: tuple[str, int], suite: int, recipe_runs: list[str] = ()) -> list[str]:
+          refinement: tuple[str, int], suite: int, recipe_runs: list[str] = (), in_progress: bool = False) -> list[str]:
     """The main table section over several trainings per role (markdown lines), ``results`` already
     of suite ``suite``; ``chart``: where to draw the means' bars; ``recipe_runs``: trainings of the
-    paper's recipe, a row of their own."""
+    paper's recipe, a row of their own. A training with no qualifying evaluation is an error, unless
+    ``in_progress`` (a grid still running: it is listed as not measured yet)."""
     trainings, notes = select_trainings(results, read_runs, det_runs, refinement, list(recipe_runs))
     rows = tuple(trainings)
     filled = {run for row in rows for run, cells in trainings[row] if cells}
     empty = [run for run in read_runs + det_runs + list(recipe_runs) if run not in filled]
-    if empty:
+    if empty and not in_progress:
         raise ValueError(f"--main: no evaluation of run(s) {', '.join(repr(r) for r in empty)} "
                          f"qualifies (READ: SPE top-1, N = 0, or N = 100 with the {preset_name} preset's refinement "
                          f"{refinement[0]} x {refinement[1]} rounds; Deterministic: 'direct')")
@@ -201,6 +203,9 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
             (spread(*m[c], total[row]) + ("‡" if (row, c) in marked else "")) if c in m else "–" for c in cols) + " |")
     out += [f"| {paper.READ_LABEL} | " + " | ".join(f"{paper_row[c]:.1f}" if c in paper_row else "–" for c in cols)
             + " |", ""]
+    if empty:
+        out += ["Still running: no evaluation of " + ", ".join(f"`{r}`" for r in empty) + " yet (a mean counts the "
+                "trainings measured so far, `n=k`).", ""]
     out += ["Each training's row (success % over the task's test episodes):", "",
             "| training | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     labels: dict[str, dict[str, dict]] = {}

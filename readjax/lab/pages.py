@@ -16,14 +16,19 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from readjax import tasks
-from readjax.lab import claims, difficulty, difficulty_why, main_table, readme_tables
+from readjax.lab import claims, difficulty, difficulty_why, main_table, main_table_seeds, readme_tables
 from readjax.lab.report import write_report
-from readjax.tables import suite_mark
+from readjax.tables import of_suite, suite_mark, suite_note
 
 RESULTS = "results"
 # the runs each page reports (committed under results/<task>/<run>/)
 MAIN_RUNS = ("read_v3_5k", "deterministic_v3_5k")  # the main table of suite 1
 MAIN_SUITE = 1
+# the current suite's main table (issue 52's grid): trainings per role, one per train.seed, and the paper's recipe
+GRID = {"read": ("read_s2", "read_s2_seed1", "read_s2_seed2"),
+        "deterministic": ("deterministic_s2", "deterministic_s2_seed1", "deterministic_s2_seed2"),
+        "recipe": ("read_s2_paper",)}
+GRID_SUITE = tasks.SUITE_VERSION
 MARK = suite_mark({"suite": MAIN_SUITE})  # how the tables' row labels mark the pages' suite (" [suite 1]")
 BASELINE_ROLES = {"read": "read_v3_5k_rep", "deterministic": "deterministic_conv", "vpsde": "vpsde_conv",
                   "vpsde_cg": "vpsde_cg_conv", "read_o": "read_o_cd_conv", "read_l": "read_l_conv",
@@ -47,12 +52,24 @@ def results_page() -> str:
     roles = {**{r: r for r in claims.ROLES}, "read": read_run, "deterministic": det_run}
 
     def main(results, chart):
-        return (main_table.lines(results, read_run, det_run, chart, preset_name="cpu", suite=MAIN_SUITE)
+        return (grid_section(results, chart.with_name(chart.stem + f"_s{GRID_SUITE}.png"))
+                + main_table.lines(results, read_run, det_run, chart, preset_name="cpu", suite=MAIN_SUITE)
                 + claims.lines(results, roles, preset_name="cpu", doc_dir=out.parent,
                                plot=out.with_name(out.stem + "_claims.png"), suite=MAIN_SUITE))
 
     return write_report(RESULTS, out, main=main, compare=(f"{read_run}{MARK}: retrieval only (N=0)",
                                                            det_run + MARK))
+
+
+def grid_section(results: list[dict], chart: Path) -> list[str]:
+    """The current suite's main table over the grid's trainings (:data:`GRID`), what is measured so far."""
+    mine = of_suite(results, GRID_SUITE)
+    if not any(r["_run_name"] in GRID["read"] for r in mine):
+        return [f"## Main table (the paper's layout), suite {GRID_SUITE}", "", suite_note(GRID_SUITE), "",
+                "No READ training of the grid (" + ", ".join(f"`{r}`" for r in GRID["read"]) + ") has a test "
+                "evaluation yet; `experiments.pipeline` runs it ([usage.md](usage.md)).", ""]
+    return main_table_seeds.lines(mine, list(GRID["read"]), list(GRID["deterministic"]), chart, "cpu",
+                                  main_table.refinement_of("cpu"), GRID_SUITE, list(GRID["recipe"]), in_progress=True)
 
 
 def baselines_page() -> str:
@@ -136,7 +153,7 @@ def results_readme() -> str:
 
 def readme_page() -> str:
     """README.md's generated blocks (the compact main table, the baselines); the rest of it is written by hand."""
-    return readme_tables.readme(Path("README.md"), RESULTS, MAIN_RUNS, BASELINE_ROLES, MAIN_SUITE)
+    return readme_tables.readme(Path("README.md"), RESULTS, MAIN_RUNS, BASELINE_ROLES, MAIN_SUITE, GRID, GRID_SUITE)
 
 
 PAGES = {

@@ -110,21 +110,22 @@ def main_lines(results: list[dict], read_run: str, det_run: str, suite: int, pre
 
 
 def trainings_lines(results: list[dict], mine: list[dict], read_runs: list[str], det_runs: list[str], suite: int,
-                    preset_name: str = "cpu") -> list[str]:
+                    preset_name: str = "cpu", recipe_runs: list[str] = ()) -> list[str]:
     """The compact main table over several trainings per role (``mine``: the suite's results): each
-    row's Avg12 / Avg16 as the mean and range over its trainings' own averages, as docs/results.md's."""
+    row's Avg12 / Avg16 as the mean and range over its trainings' own averages, as docs/results.md's;
+    ``recipe_runs``: the paper's recipe, a row of its own. A training not measured yet is said so."""
     refinement = main_table.refinement_of(preset_name)
-    trainings, _ = main_table_seeds.select_trainings(mine, read_runs, det_runs, refinement)
+    trainings, _ = main_table_seeds.select_trainings(mine, read_runs, det_runs, refinement, list(recipe_runs))
     means = main_table_seeds.summary(trainings, main_table_seeds.common_tasks(trainings))
     names = {main_table.READ_ROW: "READ, N = 100", main_table.RETRIEVAL_ROW: "READ, retrieval only (N = 0)",
-             main_table.DET_ROW: "Deterministic"}
+             main_table.DET_ROW: "Deterministic", main_table_seeds.RECIPE_ROW: "READ, the paper's recipe (N = 100)"}
     cells = [r for runs in trainings.values() for _, by_task in runs for r in by_task.values()]
     n_tasks = len({t for _, by_task in trainings[main_table.READ_ROW] for t in by_task})
     out = [f"| success % ({n_tasks} tasks, {_episodes(cells)}) | suite | Avg12 | Avg16 | runs |",
            "|---|---|---|---|---|"]
     unverified = []
-    for row, name in names.items():
-        runs = trainings[row]
+    for row, runs in trainings.items():
+        name = names[row]
         mark = "‡" if any(not r.get("_verified", False) for _, by_task in runs for r in by_task.values()) else ""
         unverified += [name] if mark else []
         avgs = [main_table_seeds.spread(*means[row][c], len(runs)) + mark if c in means[row] else "–"
@@ -132,6 +133,12 @@ def trainings_lines(results: list[dict], mine: list[dict], read_runs: list[str],
         out.append(f"| {name} | {suite} | {avgs[0]} | {avgs[1]} | " + ", ".join(f"`{r}`" for r, _ in runs) + " |")
     p = main_table.with_averages(dict(paper.READ_TABLE7_A), [])
     out += [f"| READ, the paper (Table 7, setting A) | the paper's | {p['Avg12']:.1f} | {p['Avg16']:.1f} | – |", ""]
+    waiting = [r for r in [*read_runs, *det_runs, *recipe_runs]
+               if not any(run == r and by_task for runs in trainings.values() for run, by_task in runs)]
+    if n_tasks < len(tasks.AVG16) or waiting:
+        out += [f"Still running: {n_tasks} of {len(tasks.AVG16)} tasks have a READ training measured"
+                + (", no evaluation yet of " + ", ".join(f"`{r}`" for r in waiting) if waiting else "")
+                + "; Avg12 / Avg16 appear once a training has all their tasks.", ""]
     return out + [_suite_line(suite, results) + " The averages: the mean over a row's trainings (one per "
                   "`train.seed`) of each training's own average, their range in brackets, `n=k` where only k "
                   "trainings have every task of it."
@@ -177,12 +184,25 @@ def splice(text: str, marker: str, lines: list[str]) -> str:
     return pattern.sub(lambda _: "\n".join([marker, *lines, END]), text, count=1)
 
 
-def readme(path, results_root: str, main_runs: tuple[str, str], baseline_roles: dict[str, str], suite: int) -> str:
-    """Rewrite the generated blocks of the README at ``path`` from ``results_root``; returns its text."""
+def grid_lines(results: list[dict], grid: dict[str, tuple[str, ...]], suite: int, preset_name: str = "cpu") -> list[str]:
+    """The compact main table of a grid of trainings on ``suite`` (``grid``: ``read`` / ``deterministic`` /
+    ``recipe`` -> run names, one per ``train.seed``), or nothing while no READ training of it is measured."""
+    mine = _suite_results(results, suite)
+    if not any(r["_run_name"] in grid["read"] for r in mine):
+        return []
+    return trainings_lines(results, mine, list(grid["read"]), list(grid["deterministic"]), suite, preset_name,
+                           list(grid.get("recipe", ())))
+
+
+def readme(path, results_root: str, main_runs: tuple[str, str], baseline_roles: dict[str, str], suite: int,
+           grid: dict[str, tuple[str, ...]] | None = None, grid_suite: int | None = None) -> str:
+    """Rewrite the generated blocks of the README at ``path`` from ``results_root``; returns its text.
+    ``grid`` (on ``grid_suite``): the current suite's trainings, its table first, ``main_runs``'s below it."""
     results = collect(results_root)
     roles = {**{r: r for r in claims.ROLES}, **baseline_roles}
     text = path.read_text()
-    text = splice(text, MAIN_BLOCK, main_lines(results, *main_runs, suite))
+    current = grid_lines(results, grid, grid_suite) if grid else []
+    text = splice(text, MAIN_BLOCK, current + ([""] if current else []) + main_lines(results, *main_runs, suite))
     text = splice(text, BASELINES_BLOCK, baselines_lines(results, roles, suite))
     path.write_text(text)
     return text
