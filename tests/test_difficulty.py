@@ -60,12 +60,28 @@ def test_a_split_against_itself_replays_its_own_ground_truth(data, tmp_path, cap
     profile = difficulty_why.tolerance_profile(r)
     assert sum(n for _, n in profile) == 12  # both ranks' copies, each in one bin
     assert profile[0][0] >= 6 and profile[0][1] >= 6  # the six own copies: below 1 cm, succeeded
-    assert r["execution"]["expert_rate_posture"] is True
+    assert r["execution"]["expert_rate_posture"] is True and r["created"].startswith("20")
     assert "| RT | +4 | 0.0 cm, 0° |" in difficulty_why.table(records)
     assert "| RT | 100 | " in out  # the table, beside the paper's row
     # a second call measures nothing: the record of this split exists
     assert _cli.run(difficulty_cli.main, args) == 0
     assert "record exists" in capsys.readouterr().out
+
+
+def test_the_newest_record_of_a_task_is_its_created_time_not_its_file_time(tmp_path):
+    """A task measured again (its split regenerated) has two records; a fresh clone gives both the same
+    file time, so the newest is told by ``created`` (a record without one, written before it existed, is
+    the older)."""
+    import os
+    folder = tmp_path / TASK / difficulty.FOLDER
+    folder.mkdir(parents=True)
+    rec = {"task": TASK, "code": "RT", "suite": tasks.SUITE_VERSION}
+    (folder / "ffff.json").write_text(json.dumps(dict(rec, test_fingerprint="old")))
+    (folder / "0000.json").write_text(json.dumps(dict(rec, test_fingerprint="new", created="2026-12-07T09:00:00+00:00")))
+    (folder / "1111.json").write_text(json.dumps(dict(rec, test_fingerprint="older", created="2026-12-01T09:00:00+00:00")))
+    for name, t in (("0000.json", 1), ("1111.json", 3), ("ffff.json", 2)):  # file times say otherwise
+        os.utime(folder / name, (t, t))
+    assert difficulty.load_records(tmp_path)[TASK]["test_fingerprint"] == "new"
 
 
 def test_no_measurement_without_a_full_replay_on_record(data, tmp_path):

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import time
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
@@ -94,6 +95,7 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
         "generation": {split: _generation_summary(store.split_dir(data_root, task, split))
                        for split in ("train", "test")},
         "execution": execution_record(),  # how plans were executed (IK, skipped waypoints)
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),  # which record of a task is newest
         "seconds": round(time.time() - t0, 2), "versions": provenance.versions(),
         "machine": provenance.machine(), "commit": provenance.commit(),
     }
@@ -114,16 +116,18 @@ def _generation_summary(split_dir: Path) -> dict | None:
 
 
 def load_records(results, suite: int = tasks.SUITE_VERSION) -> dict[str, dict]:
-    """The newest difficulty record of every task (by file time) whose split is of ``suite``."""
-    out = {}
-    for f in sorted(Path(results).glob(f"*/{FOLDER}/*.json"), key=lambda p: p.stat().st_mtime):
+    """The newest difficulty record of every task whose split is of ``suite``: by its ``created`` time
+    (a record without one is older than any with one), then by file name. Not by file time, which a fresh
+    clone sets to the checkout's, so a task measured again (its split regenerated) would be shown at random."""
+    found = []
+    for f in sorted(Path(results).glob(f"*/{FOLDER}/*.json")):
         try:
             r = json.loads(f.read_text())
         except json.JSONDecodeError:
             continue
         if tasks.suite_of(r) == suite and r.get("task") in tasks.names():
-            out[r["task"]] = r
-    return out
+            found.append((r.get("created", ""), f.name, r))
+    return {r["task"]: r for _, _, r in sorted(found, key=lambda x: x[:2])}
 
 
 def _paper(i: int, code: str) -> str:
