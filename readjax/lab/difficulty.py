@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -95,7 +95,7 @@ def measure(task: str, data_root, results, ranks=RANKS, episodes: int = 100, tra
         "generation": {split: _generation_summary(store.split_dir(data_root, task, split))
                        for split in ("train", "test")},
         "execution": execution_record(),  # how plans were executed (IK, skipped waypoints)
-        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),  # which record of a task is newest
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),  # which record of a task is newest
         "seconds": round(time.time() - t0, 2), "versions": provenance.versions(),
         "machine": provenance.machine(), "commit": provenance.commit(),
     }

@@ -35,12 +35,13 @@ def refinement_of(preset_name: str) -> tuple[str, int]:
     return sde.update, sde.rounds
 
 
-def is_chosen_spe_eval(r: dict, n: int) -> bool:
-    """Whether ``r`` is READ's clean-image SPE evaluation at N = ``n`` refined with the setting its
-    choice (recorded in ``r``) picked on the validation split."""
+def is_chosen_eval(r: dict, n: int, oracle_rank: int | None = None) -> bool:
+    """Whether ``r`` is READ's clean-image evaluation at N = ``n`` from SPE's top-1 (``oracle_rank``: the
+    oracle's neighbour of that rank) refined with the setting its choice (recorded in ``r``) picked on
+    the validation split."""
     chosen = (r.get("choice") or {}).get("chosen") or {}
     return (r.get("chosen_on") == "val" and {"refine", "rounds"} <= set(chosen)
-            and is_eval(r, "read", n, refinement=(chosen["refine"], chosen["rounds"]),
+            and is_eval(r, "read", n, oracle_rank, refinement=(chosen["refine"], chosen["rounds"]),
                         candidates=chosen.get("candidates", 1)))
 
 
@@ -51,11 +52,11 @@ def select(results: list[dict], read_run: str | None, det_run: str | None,
     split before the preset's). A run given as None fills its rows with nothing."""
     rows: dict[str, dict[str, dict]] = {READ_ROW: {}, RETRIEVAL_ROW: {}, DET_ROW: {}}
     notes = []
-    chosen_first = sorted(results, key=lambda r: (not is_chosen_spe_eval(r, 100), r["_file"]))
+    chosen_first = sorted(results, key=lambda r: (not is_chosen_eval(r, 100), r["_file"]))
     for r in chosen_first:
         run = r["_run_name"]
         row = None
-        if run == read_run and (is_chosen_spe_eval(r, 100) or is_spe_eval(r, 100, refinement)):
+        if run == read_run and (is_chosen_eval(r, 100) or is_spe_eval(r, 100, refinement)):
             row = READ_ROW
         elif run == read_run and is_spe_eval(r, 0, refinement):
             row = RETRIEVAL_ROW

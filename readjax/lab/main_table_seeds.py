@@ -186,7 +186,8 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
     order = lambda u: (rows.index(u[0]), position[u[1]], tasks.AVG16.index(u[2]))  # noqa: E731
     out = [f"## Main table (the paper's layout), suite {suite}", "", suite_note(suite), "",
            f"READ is each of the trainings {', '.join(f'`{r}`' for r in read_runs)} (one per `train.seed`) on each "
-           f"task at N = 100 with the {preset_name} preset's refinement (`sde.update={refinement[0]}`, "
+           f"task at N = 100, refined with the setting chosen on the task's validation split where one was chosen "
+           f"(`results/<task>/<run>/choice.json`), else with the {preset_name} preset's (`sde.update={refinement[0]}`, "
            f"`sde.rounds={refinement[1]}`), on clean test images with SPE top-1 retrieval; retrieval only is the "
            f"same trainings at N = 0; Deterministic is the trainings {', '.join(f'`{r}`' for r in det_runs)}. "
            "A cell is the mean success % over the trainings that have the task (each over its test episodes), "

@@ -16,7 +16,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from readjax import tasks
-from readjax.lab import claims, difficulty, difficulty_why, main_table, main_table_seeds, readme_tables
+from readjax.lab import (claims, difficulty, difficulty_why, main_table, main_table_seeds, protocol_tables,
+                         readme_tables)
 from readjax.lab.report import write_report
 from readjax.tables import of_suite, suite_mark, suite_note
 
@@ -68,8 +69,10 @@ def grid_section(results: list[dict], chart: Path) -> list[str]:
         return [f"## Main table (the paper's layout), suite {GRID_SUITE}", "", suite_note(GRID_SUITE), "",
                 "No READ training of the grid (" + ", ".join(f"`{r}`" for r in GRID["read"]) + ") has a test "
                 "evaluation yet; `experiments.pipeline` runs it ([usage.md](usage.md)).", ""]
-    return main_table_seeds.lines(mine, list(GRID["read"]), list(GRID["deterministic"]), chart, "cpu",
-                                  main_table.refinement_of("cpu"), GRID_SUITE, list(GRID["recipe"]), in_progress=True)
+    refinement = main_table.refinement_of("cpu")
+    return (main_table_seeds.lines(mine, list(GRID["read"]), list(GRID["deterministic"]), chart, "cpu", refinement,
+                                   GRID_SUITE, list(GRID["recipe"]), in_progress=True)
+            + protocol_tables.lines(mine, GRID["read"][0], refinement))
 
 
 def baselines_page() -> str:

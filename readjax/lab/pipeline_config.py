@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from readjax import methods, tasks
 from readjax.config import REFINE_UPDATES
 from readjax.lab import result_record
+from readjax.lab.paper import POOR_RANK
 
 
 @dataclass(frozen=True)
@@ -248,7 +249,6 @@ PROTOCOL_EVALUATIONS = {
                  "brightness factor (--brightness)",
 }
 ORACLE_RANKS = (1, 3, 10)
-POOR_RANK = 500
 # Table 4 also starts the two ablations from the oracle's i-th neighbour (refined at their default N):
 # with the oracle protocol, their runs (and variants) are evaluated so too
 ORACLE_ABLATIONS = ("read_o", "read_l")
