@@ -194,6 +194,7 @@ def test_a_grid_still_running_lists_the_trainings_not_measured_yet(tmp_path):
     grid = {"read": tuple(reads), "deterministic": tuple(dets), "recipe": ("read_paper",)}
     block = "\n".join(readme_tables.grid_lines(results, grid, tasks.SUITE_VERSION))
     assert f"| READ, N = 100 | {tasks.SUITE_VERSION} | – | – | `read_s2`, `read_s2_seed1` |" in block
-    assert "Still running: 1 of 16 tasks have a READ training measured, no evaluation yet of `read_s2_seed1`, " \
+    assert "| success % (1 tasks, 10 test episodes each) |" in block
+    assert "Still running: 1 of 16 tasks have a READ training measured at N = 100, no evaluation yet of `read_s2_seed1`, " \
            "`det_s2`, `read_paper`" in block
     assert readme_tables.grid_lines(results, {**grid, "read": ("other",)}, tasks.SUITE_VERSION) == []
