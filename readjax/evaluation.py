@@ -15,11 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from readjax import atomic_write, failure_modes, provenance, stage_folder, tables, tasks, viz
+from readjax import atomic_write, failure_modes, provenance, retrieval, stage_folder, tables, tasks, viz
 from readjax import motion as motion_lib
 from readjax.data.guard import check_scene_images
 from readjax.data.store import Dataset
@@ -86,7 +85,7 @@ def evaluate(planner, test_ds, cfg: EvalConfig, out_dir=None, name: str = "eval"
                           keep_traces=cfg.videos > 0)  # scenes already checked against the images
     t_exec = time.time() - t0 - t_plan
     rate = float(np.mean(res["success"]))
-    retrieved_pos = _positions(planner.camera, plan["retrieved"])  # where each plan's refinement started
+    retrieved_pos = np.asarray(retrieval.positions(planner.camera, plan["retrieved"]))  # where each plan's refinement started
     gt_pos, gt_rot = motion_lib.world_poses(planner.camera, ds.motion)
     result = {
         "task": planner.task, "code": tasks.code_of(planner.task), "run": str(planner.run_dir),
@@ -187,7 +186,3 @@ class _AttrTree(dict):
 jax.tree_util.register_pytree_node(
     _AttrTree, lambda d: (list(d.values()), list(d.keys())), lambda keys, vals: _AttrTree(zip(keys, vals)))
 
-
-def _positions(camera, motions: np.ndarray) -> np.ndarray:
-    """World end-effector positions (B, 101, 3) of a motion batch (B, 101, 10)."""
-    return np.asarray(motion_lib.decode(camera, jnp.asarray(motions))[0])
