@@ -94,6 +94,9 @@ def _stopped_after(seconds: float, step: steps.Step, heartbeat: float) -> None:
     import _thread
     import threading
 
+    # interrupt_main() does nothing while SIGINT is ignored or left to the OS, as something earlier in the same
+    # pytest-xdist worker may have set it (twice in fresh-clone runs, DID NOT RAISE): Python's own handler here
+    handler = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(seconds, _thread.interrupt_main)  # as Ctrl-C, or Ray's cancel of a task
     timer.start()
     try:
@@ -101,6 +104,7 @@ def _stopped_after(seconds: float, step: steps.Step, heartbeat: float) -> None:
             steps.run_step(step, heartbeat=heartbeat)
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, handler)
 
 
 def test_a_resumed_steps_record_adds_the_time_of_its_every_run(tmp_path):
