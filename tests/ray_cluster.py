@@ -23,10 +23,6 @@ from pathlib import Path
 from readjax.lab import ray_grid, steps, timing
 
 TASKS = ("reach_target", "push_button")
-# what the tiny grid's steps ask of a node: their measured peak (1.3 GB RSS, docs/cluster.md) rather than the
-# full-size defaults (up to 3 GiB), so a scenario does not depend on how much memory the machine has free
-# when Ray starts (a busy 2-core machine once left the embedded node less than a training's 3 GiB)
-TINY_STEPS = {kind: {"memory": int(1.5 * ray_grid.GIB)} for kind in ray_grid.STEP_RESOURCES}
 # a fake step's command: argv = LEDGER LABEL SECONDS OUTPUT [INPUT ...]
 COMMAND = """
 import hashlib, os, sys, time
@@ -145,8 +141,7 @@ def two_nodes(folder: Path) -> dict:
     for name in ("cluster", "failing"):
         prepare(folder / name)
     summary = _in(folder / "cluster", lambda: ray_grid.run_on_ray(
-        fake_grid(), log=logs.append, address=cluster.address, log_dir=Path("logs"), heartbeat=5.0,
-        resources=TINY_STEPS))
+        fake_grid(), log=logs.append, address=cluster.address, log_dir=Path("logs"), heartbeat=5.0))
     report["cluster_seconds"] = time.time() - t0
     report["placement"] = {f"{task}: {label}": node for (task, label), node in summary["nodes"].items()}
     report["cluster"] = results_of(folder / "cluster")
@@ -157,8 +152,7 @@ def two_nodes(folder: Path) -> dict:
             if s.label == "train read" and s.task == "push_button":
                 s.argv = [sys.executable, "-c", "print('the error'); raise SystemExit(3)"]
         try:
-            ray_grid.run_on_ray(grid, log=logs.append, address=cluster.address, log_dir=Path("logs"),
-                                resources=TINY_STEPS)
+            ray_grid.run_on_ray(grid, log=logs.append, address=cluster.address, log_dir=Path("logs"))
         except steps.PipelineError as e:
             return str(e)
         return None
@@ -168,8 +162,7 @@ def two_nodes(folder: Path) -> dict:
     cluster.shutdown()
     prepare(folder / "local")
     t0 = time.time()
-    _in(folder / "local", lambda: ray_grid.run_on_ray(fake_grid(), log=logs.append, log_dir=Path("logs"),
-                                                      resources=TINY_STEPS))
+    _in(folder / "local", lambda: ray_grid.run_on_ray(fake_grid(), log=logs.append, log_dir=Path("logs")))
     report["local_seconds"] = time.time() - t0
     report["local"] = results_of(folder / "local")
     report["in_order"] = in_order(folder / "in_order")
@@ -214,8 +207,7 @@ def node_killed(folder: Path) -> dict:
     killer.start()
     t0 = time.time()
     summary = _in(root, lambda: ray_grid.run_on_ray(fake_grid(generate_seconds=3.0), log=logs.append,
-                                                    address=cluster.address, log_dir=Path("logs"), heartbeat=0.5,
-                                                    resources=TINY_STEPS))
+                                                    address=cluster.address, log_dir=Path("logs"), heartbeat=0.5))
     report["seconds"] = time.time() - t0
     killed.set()
     report["placement"] = {f"{task}: {label}": node for (task, label), node in summary["nodes"].items()}
