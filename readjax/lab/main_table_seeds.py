@@ -72,6 +72,13 @@ def select_trainings(results: list[dict], read_runs: list[str], det_runs: list[s
     return out, notes
 
 
+def unmeasured(trainings: Trainings) -> list[str]:
+    """The trainings (in the order named) with no evaluation in any row."""
+    filled = {run for runs in trainings.values() for run, cells in runs if cells}
+    named = [run for runs in trainings.values() for run, _ in runs]
+    return [run for run in dict.fromkeys(named) if run not in filled]
+
+
 def common_tasks(trainings: Trainings) -> list[str]:
     """The task codes every READ training measured so far was measured on at N = 100 (``Avg (k)``'s
     tasks; a training not measured yet does not empty it)."""
@@ -164,8 +171,7 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
     ``in_progress`` (a grid still running: it is listed as not measured yet)."""
     trainings, notes = select_trainings(results, read_runs, det_runs, refinement, list(recipe_runs))
     rows = tuple(trainings)
-    filled = {run for row in rows for run, cells in trainings[row] if cells}
-    empty = [run for run in read_runs + det_runs + list(recipe_runs) if run not in filled]
+    empty = unmeasured(trainings)
     if empty and not in_progress:
         raise ValueError(f"--main: no evaluation of run(s) {', '.join(repr(r) for r in empty)} "
                          f"qualifies (READ: SPE top-1, N = 0, or N = 100 with the {preset_name} preset's refinement "

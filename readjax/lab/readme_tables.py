@@ -134,8 +134,7 @@ def trainings_lines(results: list[dict], mine: list[dict], read_runs: list[str],
         out.append(f"| {name} | {suite} | {avgs[0]} | {avgs[1]} | " + ", ".join(f"`{r}`" for r, _ in runs) + " |")
     p = main_table.with_averages(dict(paper.READ_TABLE7_A), [])
     out += [f"| READ, the paper (Table 7, setting A) | the paper's | {p['Avg12']:.1f} | {p['Avg16']:.1f} | – |", ""]
-    waiting = [r for r in [*read_runs, *det_runs, *recipe_runs]
-               if not any(run == r and by_task for runs in trainings.values() for run, by_task in runs)]
+    waiting = main_table_seeds.unmeasured(trainings)
     if n_tasks < len(tasks.AVG16) or waiting:
         out += [f"Still running: {n_tasks} of {len(tasks.AVG16)} tasks have a READ training measured at N = 100"
                 + (", no evaluation yet of " + ", ".join(f"`{r}`" for r in waiting) if waiting else "")
