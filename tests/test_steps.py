@@ -111,9 +111,7 @@ def test_a_resumed_steps_record_adds_the_time_of_its_every_run(tmp_path):
     """A training stopped (Ctrl-C, a cancelled task) and finished by a later run is recorded with the
     time of both runs; a step that starts over keeps its last run's only. While it runs, a heartbeat
     keeps its run so far (what a node lost without a word leaves)."""
-    # 3 s of CPU, stopped after 0.8 s of wall clock: on a loaded machine (2 cores, pytest-xdist) the stop can
-    # come late, and a child that had finished first would not be stopped at all
-    resumed, restarted = _busy_step(tmp_path, "resumed", 3.0, resumes=True), _busy_step(tmp_path, "restarted", 3.0, False)
+    resumed, restarted = _busy_step(tmp_path, "resumed", 1.0, resumes=True), _busy_step(tmp_path, "restarted", 1.0, False)
     for step in (resumed, restarted):
         _stopped_after(0.8, step, heartbeat=0.3)
     assert not resumed.made() and not restarted.made()
