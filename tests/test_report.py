@@ -114,6 +114,21 @@ def test_mcnemar_exact_values():
         mcnemar_p([True], [True, False])
 
 
+def test_pooling_sums_the_discordant_episodes_of_the_pairs_on_the_same_episodes():
+    from readjax.lab.paired import pool, sign_test_p
+
+    def rec(succ, seeds, suite=2):
+        return {"success": succ, "seeds": seeds, "suite": suite}
+
+    a, b = rec([1, 1, 0, 0], [0, 1, 2, 3]), rec([0, 1, 1, 0], [0, 1, 2, 3])  # +1 / -1
+    c, d = rec([1, 1, 1], [5, 6, 7]), rec([0, 0, 1], [5, 6, 7])  # +2 / -0
+    other_seeds, old_suite = rec([1, 1, 1], [5, 6, 8]), rec([0, 0, 1], [5, 6, 7], suite=1)
+    wins, losses, left_out = pool([(a, b), (c, d), (c, other_seeds), (c, old_suite)])
+    assert (wins, losses, left_out) == (3, 1, [2, 3])
+    assert sign_test_p(wins, losses) == 0.625  # 2 * P(X >= 3), X ~ Bin(4, 1/2)
+    assert pool([]) == (0, 0, [])
+
+
 def test_compare_pairs_rows_on_common_episodes(tmp_path, capsys):
     runs = tmp_path / "runs"
     seeds = list(range(10))

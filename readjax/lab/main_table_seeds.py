@@ -22,7 +22,7 @@ import numpy as np
 from readjax import tasks
 from readjax.lab import main_table as mt
 from readjax.lab import paper
-from readjax.lab.paired import counts, sign_test_p
+from readjax.lab.paired import pool, sign_test_p
 from readjax.lab.result_record import is_eval
 from readjax.tables import of_suite, success_chart, suite_note
 
@@ -72,6 +72,12 @@ def select_trainings(results: list[dict], read_runs: list[str], det_runs: list[s
     return out, notes
 
 
+def any_measured(results: list[dict], read_runs) -> bool:
+    """Whether any of a grid's READ trainings has a result in ``results``: until one has, a grid has no
+    table to show."""
+    return any(r["_run_name"] in read_runs for r in results)
+
+
 def unmeasured(trainings: Trainings) -> list[str]:
     """The trainings (in the order named) with no evaluation in any row."""
     filled = {run for runs in trainings.values() for run, cells in runs if cells}
@@ -113,14 +119,12 @@ def pooled(pairs: list[tuple[str, dict, dict]], what: str, skipped: list[str]) -
     """``+wins / -losses, p=..., k pairs``: one exact McNemar test over the discordant episodes of
     every pair (label, a, b) run on the same test episodes; a pair whose episodes differ is left out
     and said in ``skipped``."""
-    wins = losses = used = 0
-    for label, a, b in pairs:
-        if not a.get("seeds") or a.get("seeds") != b.get("seeds") or tasks.suite_of(a) != tasks.suite_of(b):
-            skipped.append(f"{label}, {what}: not the same test episodes (the seeds of `{a['_file']}` and "
-                           f"`{b['_file']}` differ)")
-            continue
-        w, lo, _ = counts(a["success"], b["success"])
-        wins, losses, used = wins + w, losses + lo, used + 1
+    wins, losses, left_out = pool([(a, b) for _, a, b in pairs])
+    for k in left_out:
+        label, a, b = pairs[k]
+        skipped.append(f"{label}, {what}: not the same test episodes (the seeds of `{a['_file']}` and "
+                       f"`{b['_file']}` differ)")
+    used = len(pairs) - len(left_out)
     if not used:
         return "–"
     return f"+{wins} / -{losses}, p={sign_test_p(wins, losses):.2g}, {used} pair{'s' if used > 1 else ''}"

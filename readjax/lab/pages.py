@@ -65,7 +65,7 @@ def results_page() -> str:
 def grid_section(results: list[dict], chart: Path) -> list[str]:
     """The current suite's main table over the grid's trainings (:data:`GRID`), what is measured so far."""
     mine = of_suite(results, GRID_SUITE)
-    if not any(r["_run_name"] in GRID["read"] for r in mine):
+    if not main_table_seeds.any_measured(mine, GRID["read"]):
         return [f"## Main table (the paper's layout), suite {GRID_SUITE}", "", suite_note(GRID_SUITE), "",
                 "No READ training of the grid (" + ", ".join(f"`{r}`" for r in GRID["read"]) + ") has a test "
                 "evaluation yet; `experiments.pipeline` runs it ([usage.md](usage.md)).", ""]

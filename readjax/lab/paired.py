@@ -51,6 +51,26 @@ def counts(a, b) -> tuple[int, int, float]:
     return int((a & ~b).sum()), int((~a & b).sum()), mcnemar_p(a, b)
 
 
+def same_episodes(a: dict, b: dict) -> bool:
+    """Whether two results ran the same test episodes: the same seeds, in order, of one suite version."""
+    return bool(a.get("seeds")) and a.get("seeds") == b.get("seeds") and tasks.suite_of(a) == tasks.suite_of(b)
+
+
+def pool(pairs) -> tuple[int, int, list[int]]:
+    """(wins, losses, left out): the discordant episodes of result pairs (a, b), summed over the pairs
+    run on the same episodes (``same_episodes``); ``left out`` indexes the pairs that were not. The
+    pooled test is ``sign_test_p(wins, losses)``."""
+    wins = losses = 0
+    left_out = []
+    for k, (a, b) in enumerate(pairs):
+        if not same_episodes(a, b):
+            left_out.append(k)
+            continue
+        w, lo, _ = counts(a["success"], b["success"])
+        wins, losses = wins + w, losses + lo
+    return wins, losses, left_out
+
+
 def discordant(a: dict, b: dict) -> str:
     """``+wins / -losses, p=...`` of result ``a`` against ``b`` on the episodes both ran."""
     pair = paired_outcomes(a, b)

@@ -188,7 +188,7 @@ def grid_lines(results: list[dict], grid: dict[str, tuple[str, ...]], suite: int
     """The compact main table of a grid of trainings on ``suite`` (``grid``: ``read`` / ``deterministic`` /
     ``recipe`` -> run names, one per ``train.seed``), or nothing while no READ training of it is measured."""
     mine = _suite_results(results, suite)
-    if not any(r["_run_name"] in grid["read"] for r in mine):
+    if not main_table_seeds.any_measured(mine, grid["read"]):
         return []
     return trainings_lines(results, mine, list(grid["read"]), list(grid["deterministic"]), suite, preset_name,
                            list(grid.get("recipe", ())))
