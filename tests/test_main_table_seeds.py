@@ -198,3 +198,46 @@ def test_a_grid_still_running_lists_the_trainings_not_measured_yet(tmp_path):
     assert "Still running: 1 of 16 tasks have a READ training measured at N = 100, no evaluation yet of `read_s2_seed1`, " \
            "`det_s2`, `read_paper`" in block
     assert readme_tables.grid_lines(results, {**grid, "read": ("other",)}, tasks.SUITE_VERSION) == []
+
+
+def test_the_readme_shows_the_old_suite_until_the_grid_has_every_task_and_says_how_it_was_tuned(tmp_path):
+    """The older suite's rows (READ refined with a setting chosen on test episodes) are said to be so,
+    and leave the README once a READ training of the current suite's grid has all 16 tasks."""
+    runs = tmp_path / "results"
+    T, F = True, False
+    for run, name, method, n in (("read_v3", "spe_N100_now", "read", 100), ("read_v3", "spe_N0", "read", 0),
+                                 ("det_v3", "direct", "deterministic", None)):
+        _write(runs, "reach_target", run, name, [T] * 6 + [F] * 4, method=method, N=n)
+        _edit(runs, "reach_target", run, name, suite=tasks.SUITE_VERSION - 1)
+    chosen = {"chosen_on": "val", "choice": {"file": "c.json", "chosen": {"refine": "renoise", "rounds": 1}}}
+    grid = {"read": ("read_s2",), "deterministic": ("det_s2",), "recipe": ()}
+    codes = list(tasks.AVG16)
+    for code in codes[:-1]:
+        _write(runs, tasks.canonical_name(code), "read_s2", "spe_N100", [T] * 9 + [F], refine_update="renoise",
+               rounds=1)
+        _edit(runs, tasks.canonical_name(code), "read_s2", "spe_N100", **chosen)
+    for task in tasks.names():
+        verification.write(runs, {"task": task, "split": "test", "dataset_fingerprint": f"fp-{task}",
+                                  "episodes": 10, "success_rate": 1.0})
+    readme = tmp_path / "README.md"
+    readme.write_text(f"{readme_tables.MAIN_BLOCK}\n{readme_tables.END}\n{readme_tables.BASELINES_BLOCK}\n"
+                      f"{readme_tables.END}\n")
+
+    def main_block():
+        text = readme_tables.readme(readme, str(runs), ("read_v3", "det_v3"), {"read": "read_v3"},
+                                    tasks.SUITE_VERSION - 1, grid, tasks.SUITE_VERSION)
+        main, baselines = text.split(readme_tables.BASELINES_BLOCK)
+        assert "READ, N = 100 (`read_v3`) |" not in baselines  # its refinement was chosen on test episodes
+        assert "READ, N = 100 (`read_v3`): in docs/baselines.md only" in baselines
+        return main
+
+    block = main_block()
+    assert "| READ, N = 100 | 2 | 90.0 | – | `read_s2` |" in block and "15 of 16 tasks" in block  # SB missing
+    assert "| READ, N = 100 | 1 | – | – | `read_v3` |" in block
+    assert block.count("was chosen by comparing success on reach_target's test episodes") == 1  # suite 1's rows only
+    _write(runs, tasks.canonical_name(codes[-1]), "read_s2", "spe_N100", [T] * 10, refine_update="renoise", rounds=1)
+    _edit(runs, tasks.canonical_name(codes[-1]), "read_s2", "spe_N100", **chosen)
+    assert readme_tables.grid_has_all_tasks(collect(runs), grid, tasks.SUITE_VERSION)
+    block = main_block()
+    assert "| READ, N = 100 | 2 | 90.0 | 90.6 | `read_s2` |" in block
+    assert "`read_v3`" not in block and "test episodes (BENCHMARKS" not in block
