@@ -124,6 +124,9 @@ def parser() -> argparse.ArgumentParser:
                    metavar="PROTOCOL",
                    help="READ's evaluations beyond the main table: "
                         + "; ".join(f"{k}: {v}" for k, v in PROTOCOL_EVALUATIONS.items()))
+    p.add_argument("--protocol-runs", nargs="+", default=[], metavar="LABEL",
+                   help="READ variants (--variant labels) evaluated under --protocols too, beside READ itself, e.g. "
+                        "the paper's recipe from a poor start (--protocols poor --protocol-runs read_paper)")
     p.add_argument("--noise", type=float, default=PipelineConfig.noise,
                    help="the perturbed protocol's Gaussian noise std on the test RGB in [0, 1] (the paper does not "
                         "state its level)")
@@ -204,7 +207,8 @@ def main(argv=None) -> int:
         overrides=tuple(args.set), run_names=run_names,
         media_episodes=args.media_episodes, diagnose_below=args.diagnose_below, variants=variants,
         protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness,
-        val_episodes=args.val_episodes, choice_grid=grid, fixed_refinement=tuple(args.fixed_refinement)).validate()
+        val_episodes=args.val_episodes, choice_grid=grid, fixed_refinement=tuple(args.fixed_refinement),
+        protocol_runs=tuple(args.protocol_runs)).validate()
     try:
         steps = pipeline.plan_steps(cfg)
     except PipelineError as e:

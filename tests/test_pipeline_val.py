@@ -89,6 +89,27 @@ def test_a_fixed_refinement_run_chooses_nothing_beside_one_that_chooses(tmp_path
         _cfg(tmp_path, fixed_refinement=("read_o",))
 
 
+def test_a_protocol_run_is_evaluated_from_a_poor_start_as_read_is(tmp_path):
+    """--protocol-runs read_paper: the paper's recipe evaluated under --protocols too (from the oracle's
+    500th neighbour at N = 0 / 1 / 100), with its own refinement and no choice; READ with its choice."""
+    paper = ("read_paper", "read", ("sde.update=renoise", "sde.rounds=1"))
+    cfg = _cfg(tmp_path, methods=("read", "read_paper", "deterministic"), variants=(paper,), train_episodes=1000,
+               fixed_refinement=("read_paper",), protocols=("poor",), protocol_runs=("read_paper",))
+    runs = {s.label: s.argv for s in pipeline.plan_steps(cfg) if s.kind == "evaluate" and "500th" in s.label}
+    assert sorted(runs) == sorted(f"evaluate {who} from the oracle's 500th neighbour --N {n}"
+                                  for who in ("read", "read_paper") for n in (0, 1, 100))
+    assert all(a[a.index("--rank") + 1] == "500" for a in runs.values())
+    paper_runs = [a for label, a in runs.items() if "read_paper" in label]
+    assert all(Path(a[a.index("--run") + 1]).name == "read_paper" and "--choice" not in a for a in paper_runs)
+    assert "--choice" in runs["evaluate read from the oracle's 500th neighbour --N 100"]
+    for bad, match in [(dict(protocol_runs=("deterministic",)), "--protocol-runs deterministic: not a READ variant"),
+                       (dict(protocol_runs=("read",)), "--protocol-runs read: not a READ variant"),
+                       (dict(protocol_runs=("read_paper",), protocols=()), "name the protocols too")]:
+        with pytest.raises(ValueError, match=match):
+            _cfg(tmp_path, **{**dict(methods=("read", "read_paper", "deterministic"), variants=(paper,),
+                                     train_episodes=1000, protocols=("poor",)), **bad})
+
+
 class FakeRunner:
     """Stands in for the commands (the choice: the real experiments.choose, in this process); READ's
     val success per (rounds, refine) is ``val_rates``, its test success 1."""

@@ -72,7 +72,9 @@ def grid_section(results: list[dict], chart: Path) -> list[str]:
     refinement = main_table.refinement_of("cpu")
     return (main_table_seeds.lines(mine, list(GRID["read"]), list(GRID["deterministic"]), chart, "cpu", refinement,
                                    GRID_SUITE, list(GRID["recipe"]), in_progress=True)
-            + protocol_tables.lines(mine, GRID["read"][0], refinement))
+            + protocol_tables.lines(mine, GRID["read"][0], refinement)
+            + [line for run in GRID["recipe"]
+               for line in protocol_tables.lines(mine, run, main_table.refinement_of("paper"))])
 
 
 def baselines_page() -> str:

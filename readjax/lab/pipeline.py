@@ -180,6 +180,9 @@ def plan_steps(cfg: PipelineConfig, python: str = sys.executable) -> list[Step]:
                             step.needs.append(top)
                             uses.append(step)
                 uses += [evaluate_step(cfg, task, run, method, request, python, choice=val) for request in protocol]
+            elif label in cfg.protocol_runs:  # a READ variant under the same protocols, shown by its label
+                uses += [evaluate_step(cfg, task, run, method, request, python, shown=label, choice=val)
+                         for request in protocol_requests(cfg)]
             train.users = chosen + uses
             steps += [train] + chosen + ([val.step] if val else []) + uses
             outputs += chosen + uses

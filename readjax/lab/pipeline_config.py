@@ -108,6 +108,9 @@ class PipelineConfig:
     # goes in ``methods`` like a method's name
     variants: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
     protocols: tuple[str, ...] = ()  # READ's evaluations beyond the main table: keys of PROTOCOL_EVALUATIONS
+    # READ variants (labels of ``methods``) evaluated under ``protocols`` as well as READ itself, e.g. the
+    # paper's recipe from a poor start
+    protocol_runs: tuple[str, ...] = ()
     noise: float = 0.05  # Table 9's perturbations (the paper does not state its levels): RGB noise std
     brightness: float = 0.7  # and the brightness factor
     # validation episodes (seeds from 2,000,000): each READ run's refinement setting is chosen on
@@ -165,6 +168,12 @@ class PipelineConfig:
                              f"--train-episodes must be at least {POOR_RANK}, got {self.train_episodes}")
         if self.protocols and "read" not in self.methods:
             raise ValueError("--protocols evaluate READ's run: add read to --methods")
+        for label in self.protocol_runs:
+            if label not in self.methods or self.method_of(label) != "read" or label == "read":
+                raise ValueError(f"--protocol-runs {label}: not a READ variant of this grid (its methods and variants: "
+                                 f"{', '.join(self.methods)})")
+        if self.protocol_runs and not self.protocols:
+            raise ValueError("--protocol-runs names the variants evaluated under --protocols: name the protocols too")
         if self.noise < 0 or self.brightness <= 0:
             raise ValueError(f"--noise must be >= 0 and --brightness > 0, got {self.noise} and {self.brightness}")
         if "perturbed" in self.protocols and (self.noise == 0 or self.brightness == 1.0):

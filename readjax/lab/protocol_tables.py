@@ -45,10 +45,13 @@ def lines(results: list[dict], run: str, refinement: tuple[str, int]) -> list[st
     if not codes:
         return []
     full = {k: [c for c in codes if grid[k, tasks.canonical_name(c)]] for k in range(len(ROWS))}
+    chosen = any(r.get("chosen_on") == "val" for r in grid.values() if r)
+    how = ("the setting chosen on the validation split" if chosen else
+           f"{refinement[0]} x {refinement[1]} round{'s' if refinement[1] > 1 else ''}, chosen on nothing")
     out = [f"### The paper's Tables 4, 5 and 8: READ from the oracle's i-th neighbour (`{run}`)", "",
            "READ refining the i-th nearest training demonstration to the ground truth (Table 4's READ (i), N = 100) "
            "against that start executed unrefined (Table 5's Cheat (i)), and from a poor start, the 500th "
-           "neighbour (Table 8). Refined cells use the setting chosen on the validation split. Success % over "
+           f"neighbour (Table 8). Refined cells use {how}. Success % over "
            "the test episodes, ours over the paper's; `Avg (k)`: the k tasks the row has, the paper's over the "
            "same; Avg12 / Avg16 once a row has all their tasks.", "",
            "| row | " + " | ".join(codes) + " | Avg (k) | Avg12 | Avg16 |", "|---" * (len(codes) + 4) + "|"]
