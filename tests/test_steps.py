@@ -196,3 +196,36 @@ def test_steps_finishing_side_by_side_lose_no_timing_record(tmp_path):
     assert sorted(recorded) == sorted(f"{p} {k}" for p in "abc" for k in range(n))
     assert not list(_timing(tmp_path).parent.glob("*.tmp*"))  # no temporary file left behind
     assert os.path.exists(str(_timing(tmp_path)) + ".lock")
+
+
+def test_a_timing_record_names_its_run_and_suite_and_the_grid_cost_counts_its_own_runs(tmp_path):
+    """Each record says which run the step worked for (read from its command) and the tasks' suite; the
+    grid's cost table sums the grid's runs and the suite's data steps, a later run of a label included,
+    and leaves out other runs and other suites."""
+    from readjax import tasks
+
+    def step(label, kind, argv):
+        return steps.Step(kind, "reach_target", label, ["python", "-m", *argv], made=lambda: True,
+                          timing=_timing(tmp_path))
+
+    train = step("train read", "train", steps.train_command("python", task="reach_target", model="read", preset="cpu",
+                                                             name="read_s2", data="data", out="runs")[2:])
+    evaluate = step("evaluate read --N 100", "evaluate", ["experiments.evaluate", "--run", "runs/reach_target/read_s2"])
+    choose = step("choose read's refinement", "choose", ["experiments.choose", "--task", "reach_target", "--run-name",
+                                                          "read_s2"])
+    other = step("train read_o", "train", ["experiments.train", "--name", "read_o"])
+    data = step("generate val 100", "generate", ["experiments.generate", "--split", "val"])
+    assert [s.run_name() for s in (train, evaluate, choose, other, data)] == ["read_s2"] * 3 + ["read_o", None]
+    for s, seconds, cpu in ((train, 3600.0, 1800.0), (evaluate, 360.0, 180.0), (choose, 36.0, 36.0),
+                            (other, 7200.0, 7200.0), (data, 720.0, 360.0), (train, 1800.0, 900.0)):
+        timing.record_timing(s, seconds, None, cpu)
+    record = json.loads(_timing(tmp_path).read_text())
+    assert record["steps"]["train read"]["run"] == "read_s2" and record["steps"]["generate val 100"]["run"] is None
+    assert {e["suite"] for e in record["steps"].values()} == {tasks.SUITE_VERSION}
+    assert len(record["repeats"]["train read"]) == 1  # a second training of the label: kept, and counted
+    lines = cost_table.grid_cost_lines(tmp_path / "results", ["read_s2", "det_s2"], tasks.SUITE_VERSION)
+    assert "| RT | 2 | 0.20 | 1.50 | 0.11 | 1.81 | 0.91 |" in lines  # read_o's 2 h are not the grid's
+    assert cost_table.grid_cost_lines(tmp_path / "results", ["read_s2"], tasks.SUITE_VERSION - 1) == []
+    # the per-label table of one suite's steps: this suite's records, none of an older suite's
+    assert any(ln.startswith("| RT |") for ln in cost_table.cost_lines(tmp_path / "results", suite=tasks.SUITE_VERSION))
+    assert cost_table.cost_lines(tmp_path / "results", suite=tasks.SUITE_VERSION - 1) == []

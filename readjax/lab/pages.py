@@ -16,8 +16,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from readjax import tasks
-from readjax.lab import (claims, difficulty, difficulty_why, main_table, main_table_seeds, protocol_tables,
-                         readme_tables)
+from readjax.lab import (claims, cost_table, difficulty, difficulty_why, main_table, main_table_seeds,
+                         protocol_tables, readme_tables)
 from readjax.lab.report import write_report
 from readjax.tables import of_suite, suite_mark, suite_note
 
@@ -59,7 +59,7 @@ def results_page() -> str:
                                plot=out.with_name(out.stem + "_claims.png"), suite=MAIN_SUITE))
 
     return write_report(RESULTS, out, main=main, compare=(f"{read_run}{MARK}: retrieval only (N=0)",
-                                                           det_run + MARK))
+                                                           det_run + MARK), cost_suite=MAIN_SUITE)
 
 
 def grid_section(results: list[dict], chart: Path) -> list[str]:
@@ -74,7 +74,8 @@ def grid_section(results: list[dict], chart: Path) -> list[str]:
                                    GRID_SUITE, list(GRID["recipe"]), in_progress=True)
             + protocol_tables.lines(mine, GRID["read"][0], refinement)
             + [line for run in GRID["recipe"]
-               for line in protocol_tables.lines(mine, run, main_table.refinement_of("paper"))])
+               for line in protocol_tables.lines(mine, run, main_table.refinement_of("paper"))]
+            + cost_table.grid_cost_lines(RESULTS, [run for runs in GRID.values() for run in runs], GRID_SUITE))
 
 
 def baselines_page() -> str:
@@ -83,7 +84,7 @@ def baselines_page() -> str:
     plot = out.with_name(out.stem + "_claims.png")
     roles = {**{r: r for r in claims.ROLES}, **BASELINE_ROLES}
     return write_report(RESULTS, out, include=(BASELINE_ROLES["read"], "*_conv", "read_kin", "table7"),
-                        compare=(f"{BASELINE_ROLES['read']}{MARK}: retrieval only (N=0)",),
+                        cost_suite=MAIN_SUITE, compare=(f"{BASELINE_ROLES['read']}{MARK}: retrieval only (N=0)",),
                         main=lambda results, chart: claims.lines(results, roles, preset_name="cpu",
                                                                  doc_dir=out.parent, plot=plot, suite=MAIN_SUITE))
 

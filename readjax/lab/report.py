@@ -222,11 +222,13 @@ def refine_check_lines(reports: list[dict]) -> list[str]:
 
 def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...] = (),
                  compare: tuple[str, ...] | str | None = (),
-                 main: Callable[[list[dict], Path], list[str]] | None = None, include: tuple[str, ...] = ()) -> str:
+                 main: Callable[[list[dict], Path], list[str]] | None = None, include: tuple[str, ...] = (),
+                 cost_suite: int | None = None) -> str:
     """The markdown report of every evaluation under ``runs_root`` (runs and sweeps filtered by
     ``exclude`` / ``include`` name patterns, see ``collect``); ``compare``: the rows to pair every
     other row with (one paired table each); ``main``: builds a section shown first, from the results
-    and a chart path beside ``out`` (``readjax.lab.main_table.lines`` for the paper's main table)."""
+    and a chart path beside ``out`` (``readjax.lab.main_table.lines`` for the paper's main table);
+    ``cost_suite``: the cost table of that suite's pipeline steps alone."""
     compare = (compare,) if isinstance(compare, str) else tuple(compare or ())
     results = collect(runs_root, exclude, include)
     found_sweeps = sweeps(runs_root, exclude, include)
@@ -264,7 +266,8 @@ def write_report(runs_root: str | Path, out: str | Path, exclude: tuple[str, ...
         lines += [f"## Sweep: {sw['model']} on {sw['task']} ({sw['episodes']} episodes per cell)", "",
                   format_table7(sw), ""]
     lines += refine_check_lines(refine_reports(runs_root, exclude, include))
-    lines += cost_lines(runs_root, {r["task"] for r in results} | {sw["task"] for sw in found_sweeps} if include else None)
+    lines += cost_lines(runs_root, {r["task"] for r in results} | {sw["task"] for sw in found_sweeps} if include else None,
+                        cost_suite)
     lines += provenance_lines(results)
     lines += ["", "| task | test seeds | episodes |", "|---|---|---|"]
     lines += [f"| {t} | {a}..{b} | {n} |" for t, a, b, n in seeds]

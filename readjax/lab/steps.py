@@ -63,6 +63,17 @@ class Step:
     # cap), None where it has none; the ETA prices the step by it before any other step's time
     seconds_left: Callable[[], float | None] | None = None
 
+    def run_name(self) -> str | None:
+        """The run folder the step trains, evaluates or chooses for, read from its command (``--name`` of
+        ``experiments.train``, ``--run`` of ``experiments.evaluate``, ``--run-name`` of
+        ``experiments.choose``); None for a data step. Its timing record names it, so a grid's cost
+        counts its own runs' steps."""
+        for flag, last_part in (("--name", False), ("--run-name", False), ("--run", True)):
+            if flag in self.argv[:-1]:
+                value = self.argv[self.argv.index(flag) + 1]
+                return Path(value).name if last_part else value
+        return None
+
     def needed(self) -> bool:
         """Whether this step is wanted and, unless it is a final step, a step that uses its output is
         still to run."""

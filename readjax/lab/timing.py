@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
-from readjax import atomic_write
+from readjax import atomic_write, tasks
 
 try:
     import fcntl
@@ -54,7 +54,7 @@ def _add_finished(record: dict, step, seconds: float, load: float | None, cpu_se
                   started: float | None) -> None:
     """:func:`record_timing`'s change to the task's timing record (in place)."""
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-             "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform()}
+             "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform(), **_whose(step)}
     earlier = record.get(UNFINISHED, {}).pop(step.label, {})
     earlier.pop(_piece_key(started), None)  # this run's own heartbeat piece: counted in ``seconds``
     if not record.get(UNFINISHED):
@@ -79,7 +79,7 @@ def record_piece(step, started: float, seconds: float, cpu_seconds: float | None
     when the step dies without a word (``kill -9``, a node gone)."""
     if step.timing is None or not step.resumes:
         return
-    piece = {"seconds": round(seconds, 1), "kind": step.kind}
+    piece = {"seconds": round(seconds, 1), "kind": step.kind, **_whose(step)}
     if cpu_seconds:
         piece["cpu_seconds"] = round(cpu_seconds, 1)
 
@@ -87,6 +87,13 @@ def record_piece(step, started: float, seconds: float, cpu_seconds: float | None
         record.setdefault(UNFINISHED, {}).setdefault(step.label, {})[_piece_key(started)] = piece
 
     _update_timing(step, add_piece)
+
+
+def _whose(step) -> dict:
+    """What a timing entry says the step worked for: its run (None: a data step) and the suite version of
+    the tasks, so a grid's cost sums its own runs' steps (:func:`readjax.lab.cost_table.grid_cost_lines`)."""
+    run_name = getattr(step, "run_name", None)
+    return {"run": run_name() if callable(run_name) else None, "suite": tasks.SUITE_VERSION}
 
 
 def _piece_key(started: float | None) -> str:
@@ -135,6 +142,21 @@ def timing_records(results: str | Path) -> dict[str, dict[str, dict]]:
         except (json.JSONDecodeError, KeyError):
             continue
     return records
+
+
+def timing_entries(results: str | Path) -> dict[str, list[tuple[str, dict]]]:
+    """Every finished run of every step under ``results``, the first (``steps``) and the later ones
+    (``repeats``: the same step of a later grid, e.g. on another suite or another run of that label):
+    {task: [(label, entry), ...]}; unreadable files are skipped."""
+    out = {}
+    for f in sorted(Path(results).glob(f"*/{TIMING_FILE}")):
+        try:
+            record = json.loads(f.read_text())
+            out[record["task"]] = ([(label, e) for label, e in record["steps"].items()]
+                                   + [(label, e) for label, es in record.get("repeats", {}).items() for e in es])
+        except (json.JSONDecodeError, KeyError):
+            continue
+    return out
 
 
 def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
