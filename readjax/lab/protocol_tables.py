@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from readjax import tasks
 from readjax.lab import main_table, paper
-from readjax.lab.paired import counts, pool, same_episodes, sign_test_p
+from readjax.lab.paired import counts, same_episodes, sign_test_p
 from readjax.lab.result_record import is_eval
 
 # (label, oracle rank, N, the paper's row, its printed averages)
@@ -68,16 +68,16 @@ def lines(results: list[dict], run: str, refinement: tuple[str, int]) -> list[st
             "plan solves / only the start, two-sided exact p, pooled over the tasks both have):", "",
             "| refined | start | " + " | ".join(codes) + " | pooled |", "|---" * (len(codes) + 3) + "|"]
     for a, b in PAIRS:
-        per, both = [], []
+        wins = losses = 0
+        per = []
         for c in codes:
             ra, rb = grid[a, tasks.canonical_name(c)], grid[b, tasks.canonical_name(c)]
             if ra is None or rb is None or not same_episodes(ra, rb):
                 per.append("–")
                 continue
             w, lo, _ = counts(ra["success"], rb["success"])
+            wins, losses = wins + w, losses + lo
             per.append(f"+{w} / -{lo}")
-            both.append((ra, rb))
-        wins, losses, _ = pool(both)
         pooled = f"+{wins} / -{losses}, p={sign_test_p(wins, losses):.2g}" if wins + losses else "–"
         out.append(f"| {ROWS[a][0]} | {ROWS[b][0]} | " + " | ".join(per) + f" | {pooled} |")
     return out + [""]
