@@ -1,5 +1,5 @@
-"""SS: cube in the region above the blade AND spatula grasped; rigid placement; blade-table
-contact; expert."""
+"""SS: cube in the region above the blade AND spatula grasped; rigid placement (the stop with it);
+blade-table contact; the stop meets only the cube; expert."""
 
 from __future__ import annotations
 
@@ -70,11 +70,15 @@ def test_rigid_template_placed_with_full_yaw(env):
     yaw = np.asarray(scenes.params["yaw"])
     sp = np.asarray(scenes.qpos[:, env.spatula_qadr:env.spatula_qadr + 7])
     cube = np.asarray(scenes.qpos[:, env.cube_qadr:env.cube_qadr + 7])
+    stop = np.asarray(scenes.mocap_pos[:, env.stop_mocap])
+    stop_quat = np.asarray(scenes.mocap_quat[:, env.stop_mocap])
     for i in range(len(yaw)):
         rot = np.asarray(placement.rot2(yaw[i]))
-        # the cube keeps its offset and turn in the spatula's frame (one rigid model)
+        # the cube and the stop keep their offsets and turn in the spatula's frame (one rigid model)
         np.testing.assert_allclose((cube[i, :2] - sp[i, :2]) @ rot, [ss.CUBE_X, 0.0], atol=1e-5)
         np.testing.assert_allclose(cube[i, 3:], sp[i, 3:], atol=1e-6)
+        np.testing.assert_allclose((stop[i, :2] - sp[i, :2]) @ rot, [ss.STOP_X, 0.0], atol=1e-5)
+        np.testing.assert_allclose(stop_quat[i], sp[i, 3:], atol=1e-6)
         lo, hi = placement.turned_extent(ss.FOOTPRINT_MIN, ss.FOOTPRINT_MAX, yaw[i])
         assert np.all(sp[i, :2] + np.asarray(lo) >= placement.WORKSPACE_LOW - 1e-5)
         assert np.all(sp[i, :2] + np.asarray(hi) <= placement.WORKSPACE_HIGH + 1e-5)
@@ -97,6 +101,21 @@ def test_blade_rests_on_the_table(env, scene):
     table = m.geom("table_col").id
     touching = {frozenset((c.geom1, c.geom2)) for c in d.contact[:d.ncon]}
     assert frozenset((blade, table)) in touching
+
+
+def test_the_stop_meets_only_the_cube_just_beyond_it(env):
+    """The stop holds the cube while the blade slides under it: its near face a few mm beyond the
+    cube's far face, as tall as the cube, touching nothing else (the blade's edge may end under it)."""
+    m = env.mj_model
+    stop = m.geom("stop")
+    assert stop.contype[0] == 0 and stop.conaffinity[0] == 0
+    pairs = {frozenset((int(a), int(b))) for a, b in zip(m.pair_geom1, m.pair_geom2)}
+    assert frozenset((stop.id, m.geom("cube").id)) in pairs
+    assert sum(stop.id in p for p in pairs) == 1
+    near_face = ss.STOP_X - stop.size[0]
+    assert 0.0 < near_face - (ss.CUBE_X + CUBE_HALF) <= 0.005
+    assert stop.size[0] == pytest.approx(ss.STOP_HALF_X)
+    assert stop.pos[2] - stop.size[2] == pytest.approx(0.0) and 2 * stop.size[2] >= 2 * CUBE_HALF
 
 
 def test_expert_succeeds(env):
