@@ -39,7 +39,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=_cli.positive_int, default=100, help="test episodes")
     p.add_argument("--ranks", type=_cli.positive_int, nargs="+", default=[1, 3, 10],
                    help="which neighbours: 1 = the nearest")
-    p.add_argument("--image-size", type=_cli.positive_int, default=64, help="image size of generated splits")
+    p.add_argument("--image-size", type=_cli.positive_int, default=None,
+                   help="image size of generated splits (default: that of the task's existing splits, so the "
+                        "pipeline's data is measured as it is; 128 where there are none). The oracle reads "
+                        "motions, not images")
     p.add_argument("--batch-size", type=_cli.positive_int, default=32, help="episodes simulated together")
     p.add_argument("--table-only", action="store_true", help="measure nothing: print the table from RESULTS")
     p.add_argument("--force", action="store_true", help="measure again even where a record exists")
@@ -59,6 +62,18 @@ def _tasks(args) -> list[str]:
     return [tasks.canonical_name(n) for n in names]
 
 
+def _existing_image_size(data, task: str) -> int | None:
+    """The image size of the task's train or test split on disk, if either exists."""
+    from readjax.data import store
+    from readjax.data.shard_io import read_meta
+
+    for split in ("train", "test"):
+        meta = read_meta(store.split_dir(data, task, split))
+        if meta:
+            return int(meta["image_size"])
+    return None
+
+
 def _prepare(task: str, args) -> None:
     """Generate what is missing and replay the test split's ground truth if no record exists."""
     from readjax.lab import verification
@@ -68,9 +83,10 @@ def _prepare(task: str, args) -> None:
     from readjax.evaluation import replay_ground_truth
     from readjax.sim.execute import execution_record
 
+    size = args.image_size or _existing_image_size(args.data, task) or GenerateConfig.image_size
     for split, n in (("train", args.train_episodes), ("test", args.episodes)):
         generate(GenerateConfig(task=task, split=split, episodes=n, out=args.data, batch_size=args.batch_size,
-                                image_size=args.image_size))
+                                image_size=size))
     test = store.load_dataset(store.split_dir(args.data, task, "test"))
     if not verification.is_verified(args.results, task, test.fingerprint, args.episodes):
         on_record = verification.find(args.results, task, test.fingerprint) or {}
