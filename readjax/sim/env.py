@@ -70,7 +70,8 @@ class TaskEnv:
     fixtures: ClassVar[tuple[str, ...]] = ()
     recolour_geoms: ClassVar[tuple[str, ...]] = ()
     expert_durations: ClassVar[tuple[int, ...]] = ()
-    substeps: ClassVar[int] = 4
+    # every task's control step; its physics substeps follow from the timestep in its XML (5 ms: 4)
+    control_dt: ClassVar[float] = 0.02
     # RLBench's rejection of a placement (readjax.sim.placement): candidates drawn until one fits
     # (SpawnBoundary.MAX_SAMPLES), placements validated until the expert's path is reachable
     # (TaskEnvironment's 40 reset attempts), and how closely the expert's IK must follow its path
@@ -89,6 +90,11 @@ class TaskEnv:
 
     def __init__(self):
         self.mj_model = load_model(self.xml)
+        timestep = float(self.mj_model.opt.timestep)
+        self.substeps = int(round(self.control_dt / timestep))
+        if abs(self.substeps * timestep - self.control_dt) > 1e-9:
+            raise ValueError(f"{self.xml}: the physics timestep {timestep} s does not divide the control step "
+                             f"{self.control_dt} s")
         # this process's own first device: in a multi-process run jax.devices()[0] belongs to process 0
         device = jax.local_devices()[0]
         self.mx = mjx.put_model(self.mj_model, device=device)
@@ -199,10 +205,6 @@ class TaskEnv:
                          f"env implements goal / move_goal, e.g. reach_target, push_button)")
 
     # ------------------------------------------------------------------ helpers for tasks
-    @property
-    def control_dt(self) -> float:
-        return float(self.mj_model.opt.timestep) * self.substeps
-
     @property
     def episode_steps(self) -> int:
         return int(sum(self.expert_durations))

@@ -29,7 +29,7 @@ expert motions failed, on seeds that changed with 0.5 mm of cube jitter (BENCHMA
 scoops against a pan's rim, the cube here sits 2 mm before a wooden stop fixed to the table, which
 holds it while the blade slides under (the stop meets only the cube: the blade's edge may end
 under it). The squeeze needs a finer step than the other tasks': this task steps the physics at
-2.5 ms (8 substeps per 20 ms control step; 5 ms and 4 elsewhere), and the stroke is slow (6.2 cm in
+2.5 ms (the XML's timestep: 8 substeps per 20 ms control step; 5 ms and 4 elsewhere), and the stroke is slow (6.2 cm in
 0.8 s, smoothstep: peak 0.12 m/s, 0.3 mm per substep; the former fast stroke moved 2.4 mm per 5 ms
 substep into a 1 mm blade's contact), which keeps the cube from being squeezed out (BENCHMARKS 26).
 
@@ -91,7 +91,6 @@ class ScoopWithSpatula(TaskEnv):
     xml = "scoop_with_spatula.xml"
     description = "grab the spatula and scoop up the cube with it"
     graspable = ("spatula",)
-    substeps = 8  # 8 x 2.5 ms (the XML's timestep): the squeeze against the stop needs the finer step
     # above, descend, settle, close, lift, to the cube, lower, settle, stroke, catch up, lift, hold
     expert_durations = (40, 20, 8, 25, 25, 45, 20, 8, 40, 6, 30, 12)
 
@@ -127,7 +126,8 @@ class ScoopWithSpatula(TaskEnv):
         lead = BLADE_HALF[0] * np.cos(PITCH)  # leading edge ahead of the blade centre
         fwd = jnp.array([jnp.cos(yaw), jnp.sin(yaw), 0.0])
         start = cube.at[2].set(z_scoop) - (CUBE_HALF + START_GAP + lead) * fwd
-        push_end = STOP_X - STOP_HALF_X + TIP_UNDER_STOP - lead - CUBE_X  # past the cube's centre
+        # the blade centre's target at the stroke's end, from the cube's centre (negative: short of it)
+        push_end = STOP_X - STOP_HALF_X + TIP_UNDER_STOP - lead - CUBE_X
         end = cube.at[2].set(z_scoop) + push_end * fwd
         up = jnp.array([0.0, 0.0, 1.0])
         poses = [
