@@ -62,18 +62,6 @@ def _tasks(args) -> list[str]:
     return [tasks.canonical_name(n) for n in names]
 
 
-def _existing_image_size(data, task: str) -> int | None:
-    """The image size of the task's train or test split on disk, if either exists."""
-    from readjax.data import store
-    from readjax.data.shard_io import read_meta
-
-    for split in ("train", "test"):
-        meta = read_meta(store.split_dir(data, task, split))
-        if meta:
-            return int(meta["image_size"])
-    return None
-
-
 def _prepare(task: str, args) -> None:
     """Generate what is missing and replay the test split's ground truth if no record exists."""
     from readjax.lab import verification
@@ -83,7 +71,7 @@ def _prepare(task: str, args) -> None:
     from readjax.evaluation import replay_ground_truth
     from readjax.sim.execute import execution_record
 
-    size = args.image_size or _existing_image_size(args.data, task) or GenerateConfig.image_size
+    size = args.image_size or store.existing_image_size(args.data, task) or GenerateConfig.image_size
     for split, n in (("train", args.train_episodes), ("test", args.episodes)):
         generate(GenerateConfig(task=task, split=split, episodes=n, out=args.data, batch_size=args.batch_size,
                                 image_size=size))

@@ -100,8 +100,8 @@ def test_unverified_measures_a_split_replayed_below_100_percent_and_marks_it(dat
            "success_rate": 5 / 6, "execution": execution_record()}
     verification.write(tmp_path / "bad", bad)
     # no --image-size: the splits on disk (32 px) are measured as they are, not regenerated at another size
-    assert difficulty_cli._existing_image_size(data / "mirror", TASK) == 32
-    assert difficulty_cli._existing_image_size(tmp_path / "nothing", TASK) is None
+    assert store.existing_image_size(data / "mirror", TASK) == 32
+    assert store.existing_image_size(tmp_path / "nothing", TASK) is None
     args = ["--task", "RT", "--data", str(data / "mirror"), "--results", str(tmp_path / "bad"), "--train-episodes",
             "6", "--episodes", "6", "--ranks", "1", "--batch-size", "2"]
     # the replay on record (5 / 6, by this execution path) is not run again: the row is measured, marked

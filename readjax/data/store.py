@@ -46,6 +46,15 @@ def split_dir(root: str | os.PathLike, task: str, split: str) -> Path:
     return Path(root) / task / split
 
 
+def existing_image_size(root: str | os.PathLike, task: str) -> int | None:
+    """The image size of the task's train (else test) split on disk; None where neither exists."""
+    for split in ("train", "test"):
+        meta = read_meta(split_dir(root, task, split))
+        if meta:
+            return int(meta["image_size"])
+    return None
+
+
 @dataclass
 class Dataset:
     """A loaded split: first-frame RGB-D images, motions, joint trajectories and seeds."""

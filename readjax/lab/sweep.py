@@ -46,9 +46,8 @@ def run_sweep(cfg: SweepConfig, progress: bool = True, execute: Callable | None 
     ray_grid.parse_resources(cfg.resources)  # a mistake there fails now, not after the test split's generation
     test_dir = store.split_dir(cfg.data, task, "test")
     if not test_dir.exists() or store.read_progress(test_dir).kept < cfg.episodes:
-        meta = store.read_meta(store.split_dir(cfg.data, task, "train")) or {}
         generate(GenerateConfig(task=task, split="test", episodes=cfg.episodes, out=cfg.data,
-                                image_size=meta.get("image_size", 64)), progress=progress)
+                                image_size=store.existing_image_size(cfg.data, task) or 64), progress=progress)
     test_ds = store.load_dataset(test_dir, limit=cfg.episodes)
     cells = []
     # setting A of this sweep: its preset's own values (the paper preset: the paper's A; the cpu preset
