@@ -15,6 +15,7 @@ over the discordant episodes of all pairs.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -98,19 +99,33 @@ def training_rates(cells: dict[str, dict], measured: list[str]) -> dict[str, flo
     return mt.with_averages({tasks.code_of(t): 100.0 * r["success_rate"] for t, r in cells.items()}, measured)
 
 
+TASK_MEANS = "§"  # an average over tasks of each task's mean, where some of the row's trainings lack a task
+
+
 def summary(trainings: Trainings, measured: list[str]) -> dict[str, dict[str, tuple[float, float, float, int]]]:
-    """Row -> column -> (mean, min, max, how many trainings have it) over the row's trainings."""
+    """Row -> column -> (mean, min, max, how many trainings have it) over the row's trainings. Where not
+    every training of a row has every task of Avg12 / Avg16 but every task has one, that average is the
+    mean over its tasks of each task's mean over the trainings that have it, with k = 0 (no range:
+    :data:`TASK_MEANS`); where every training has them all, the two definitions agree."""
     out = {}
     for row, runs in trainings.items():
         tables = [training_rates(cells, measured) for _, cells in runs]
         cols = {c for t in tables for c in t}
         out[row] = {c: (float(np.mean(v)), min(v), max(v), len(v))
                     for c in cols for v in [[t[c] for t in tables if c in t]]}
+        task_means = {c: v[0] for c, v in out[row].items() if c in tasks.AVG16}
+        for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
+            partial = name not in out[row] or out[row][name][3] < len(runs)
+            if partial and all(c in task_means for c in codes):
+                out[row][name] = (paper.mean_over(task_means, codes), float("nan"), float("nan"), 0)
     return out
 
 
 def spread(mean: float, lo: float, hi: float, k: int, total: int) -> str:
-    """``84.3 (79-91)``: a mean over trainings, its range, and ``n=k`` where only k of ``total`` have it."""
+    """``84.3 (79-91)``: a mean over trainings, its range, and ``n=k`` where only k of ``total`` have it;
+    ``84.3§`` for an average over tasks of the task means (k = 0, :func:`summary`)."""
+    if k == 0:
+        return f"{mean:.1f}{TASK_MEANS}"
     text = f"{mean:.1f}" + (f" ({lo:.0f}-{hi:.0f})" if k > 1 else "")
     return text + (f" n={k}" if k < total else "")
 
@@ -168,11 +183,13 @@ def paired_lines(trainings: Trainings) -> list[str]:
 
 
 def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart: Path | None, preset_name: str,
-          refinement: tuple[str, int], suite: int, recipe_runs: list[str] = (), in_progress: bool = False) -> list[str]:
+          refinement: tuple[str, int], suite: int, recipe_runs: list[str] = (), in_progress: bool = False,
+          goals: Callable[[Trainings], list[str]] | None = None) -> list[str]:
     """The main table section over several trainings per role (markdown lines), ``results`` already
     of suite ``suite``; ``chart``: where to draw the means' bars; ``recipe_runs``: trainings of the
     paper's recipe, a row of their own. A training with no qualifying evaluation is an error, unless
-    ``in_progress`` (a grid still running: it is listed as not measured yet)."""
+    ``in_progress`` (a grid still running: it is listed as not measured yet); ``goals``: lines drawn from
+    the trainings, placed after the paired tests (:func:`readjax.lab.grid_goals.lines`)."""
     trainings, notes = select_trainings(results, read_runs, det_runs, refinement, list(recipe_runs))
     rows = tuple(trainings)
     empty = unmeasured(trainings)
@@ -203,7 +220,9 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
            "A cell is the mean success % over the trainings that have the task (each over its test episodes), "
            "their range in brackets, and `n=k` where only k of the row's trainings have it; – = not measured yet. "
            "Avg12 / Avg16 are the mean (and range) over trainings of each training's own average, which a "
-           "training has once all its tasks are measured; `Avg (k)` the same over the k tasks every READ "
+           "training has once all its tasks are measured; where some of a row's trainings will not have every "
+           f"task (other seeds on fewer tasks), {TASK_MEANS} marks the mean over the tasks of each task's mean over "
+           "the trainings that have it; `Avg (k)` the same over the k tasks every READ "
            "training has been measured on, the paper's row over the same tasks. Each training's own row: "
            "below." + (f" The paper's recipe: {', '.join(f'`{r}`' for r in recipe_runs)} at N = 100, refined with "
                        "its own config's update and rounds, chosen on nothing." if recipe_runs else ""), "",
@@ -239,7 +258,7 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
         bars = {mean_label[row]: {c: v[0] for c, v in means[row].items()} for row in rows}
         success_chart({**bars, paper.READ_LABEL: paper_row}, chart)
         out += [f"![main table]({chart.name})", ""]
-    out += paired_lines(trainings)
+    out += paired_lines(trainings) + (goals(trainings) if goals else [])
     out += mt.failure_lines({lb: cells for lb, cells in labels.items() if not lb.startswith(mt.RETRIEVAL_ROW)})
     out += mt.training_lines(labels)
     first_run, first_cells = trainings[mt.READ_ROW][0]

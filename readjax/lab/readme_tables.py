@@ -153,7 +153,9 @@ def trainings_lines(results: list[dict], mine: list[dict], read_runs: list[str],
                 + "; Avg12 / Avg16 appear once a training has all their tasks.", ""]
     return out + [_suite_line(suite, results) + " The averages: the mean over a row's trainings (one per "
                   "`train.seed`) of each training's own average, their range in brackets, `n=k` where only k "
-                  "trainings have every task of it."
+                  "trainings have every task of it; "
+                  f"{main_table_seeds.TASK_MEANS}: where some trainings run on fewer tasks (other seeds), the mean "
+                  "over the tasks of each task's mean over its trainings."
                   + (" ‡ a test split with no 100 % ground-truth replay on record: " + ", ".join(unverified) + "."
                      if unverified else "")
                   + " Per task, each training's row, paired tests pooled over trainings, failures by mode: "
