@@ -123,3 +123,17 @@ def test_a_split_of_another_suite_is_refused_with_the_command_that_regenerates_i
     with pytest.raises(store.DatasetError, match="suite 1"):  # nor is it extended
         generate(GenerateConfig(task=TASK, split="test", episodes=8, out=str(tmp_path / "old"), batch_size=2,
                                 image_size=32), progress=False)
+
+
+def test_the_comparability_line_sets_the_oracle_averages_beside_the_papers():
+    from readjax.lab import paper
+    records = {tasks.canonical_name(c): {"code": c, "ranks": {"1": {"success_rate": paper.CHEAT[1][c] / 100}}}
+               for c in tasks.AVG16}
+    assert difficulty.comparability_line({k: v for k, v in list(records.items())[:-1]}) == ""  # not all 16 yet
+    records["reach_target"]["ranks"]["1"]["success_rate"] = 0.5  # the paper's 96: 46 points harder
+    records["stack_blocks"]["ranks"]["1"]["success_rate"] = 0.17  # the paper's 1: 16 points easier
+    line = difficulty.comparability_line(records)
+    ours = difficulty.oracle_rates(records)
+    assert ours["Avg16"] == pytest.approx((sum(paper.CHEAT[1].values()) - 46 + 16) / 16)
+    assert f"solves {ours['Avg12']:.1f} / {ours['Avg16']:.1f} % (Avg12 / Avg16) here, 79.5 / 60.6 % in the paper" in line
+    assert line.endswith("more than 15 points easier here: SB +16; harder: RT -46.")

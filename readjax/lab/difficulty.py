@@ -134,6 +134,34 @@ def _paper(i: int, code: str) -> str:
     return str(paper.CHEAT[i][code]) if i in paper.CHEAT else "–"
 
 
+def oracle_rates(records: dict[str, dict], i: int = 1) -> dict[str, float]:
+    """Task code -> the oracle's success % copying the i-th nearest training demonstration, with Avg12 /
+    Avg16 where every member task has a record."""
+    rates = {r["code"]: 100.0 * r["ranks"][str(i)]["success_rate"] for r in records.values()
+             if str(i) in r.get("ranks", {})}
+    for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
+        if all(c in rates for c in codes):
+            rates[name] = float(np.mean([rates[c] for c in codes]))
+    return rates
+
+
+def comparability_line(records: dict[str, dict]) -> str:
+    """One sentence on how far the suite's difficulty is from the paper's benchmark, by the oracle's
+    i = 1 row (Table 5's Cheat (1)): its Avg12 / Avg16 beside the paper's, and the tasks more than
+    :data:`TOLERANCE` points easier or harder."""
+    ours = oracle_rates(records, 1)
+    if "Avg16" not in ours:
+        return ""
+    diff = {c: ours[c] - paper.CHEAT[1][c] for c in tasks.AVG16}
+    easier = [f"{c} {d:+.0f}" for c, d in diff.items() if d > TOLERANCE]
+    harder = [f"{c} {d:+.0f}" for c, d in diff.items() if d < -TOLERANCE]
+    return (f"How comparable with the paper's row: copying the nearest training demonstration with no model (the "
+            f"paper's Cheat (1), [docs/difficulty.md](docs/difficulty.md)) solves {ours['Avg12']:.1f} / "
+            f"{ours['Avg16']:.1f} % (Avg12 / Avg16) here, {paper.CHEAT_AVERAGES[1]['Avg12']} / "
+            f"{paper.CHEAT_AVERAGES[1]['Avg16']} % in the paper; more than {TOLERANCE:.0f} points easier here: "
+            f"{', '.join(easier) or 'none'}; harder: {', '.join(harder) or 'none'}.")
+
+
 def table(records: dict[str, dict], ranks=RANKS) -> str:
     """The difficulty table in markdown: per task ours beside the paper's Cheat row, i = 1 / 3 / 10,
     the i = 1 difference and whether it lies within ``TOLERANCE``; then the Avg12 / Avg16 rows."""
@@ -154,9 +182,10 @@ def table(records: dict[str, dict], ranks=RANKS) -> str:
         lines.append(f"| {code}{mark} | " + " | ".join(f"{ours[i][code]:.0f}" for i in ranks) + " | "
                      + " | ".join(_paper(i, code) for i in ranks)
                      + f" | {diff:+.0f} | {'yes' if abs(diff) <= TOLERANCE else '**no**'} |")
-    for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
-        if all(c in ours[ranks[0]] for c in codes):
-            mine = " | ".join(f"{np.mean([ours[i][c] for c in codes]):.1f}" for i in ranks)
+    averages = {i: oracle_rates(records, i) for i in ranks}
+    for name in ("Avg12", "Avg16"):
+        if all(name in averages[i] for i in ranks):
+            mine = " | ".join(f"{averages[i][name]:.1f}" for i in ranks)
             theirs = " | ".join(str(paper.CHEAT_AVERAGES[i][name]) if i in paper.CHEAT_AVERAGES else "–"
                                 for i in ranks)
             lines.append(f"| {name} | {mine} | {theirs} | | |")

@@ -18,7 +18,7 @@ import re
 import numpy as np
 
 from readjax import tasks
-from readjax.lab import claims, main_table, main_table_seeds, paper
+from readjax.lab import claims, difficulty, main_table, main_table_seeds, paper
 from readjax.lab.replicates import across_trainings
 from readjax.lab.report import collect
 from readjax.lab.result_record import eval_config_of
@@ -232,6 +232,8 @@ def readme(path, results_root: str, main_runs: tuple[str, str], baseline_roles: 
     roles = {**{r: r for r in claims.ROLES}, **baseline_roles}
     text = path.read_text()
     current = grid_lines(results, grid, grid_suite) if grid else []
+    comparable = difficulty.comparability_line(difficulty.load_records(results_root, grid_suite)) if current else ""
+    current += ["", comparable] if comparable else []
     older = [] if grid and grid_has_all_tasks(results, grid, grid_suite) else main_lines(results, *main_runs, suite)
     text = splice(text, MAIN_BLOCK, current + ([""] if current and older else []) + older)
     text = splice(text, BASELINES_BLOCK, baselines_lines(results, roles, suite))
