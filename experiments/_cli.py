@@ -40,7 +40,13 @@ def positive_int(text: str) -> int:
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    pass
+    """Each option's default after its help, except where there is none to show (None: the help says
+    what happens then) or the help already names it in its own words ("(default: ...")."""
+
+    def _get_help_string(self, action):
+        if action.default is None or "(default:" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
 
 
 def add_split_arguments(p: argparse.ArgumentParser) -> None:
