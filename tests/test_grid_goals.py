@@ -89,3 +89,15 @@ def test_pairs_on_other_episodes_keep_a_goal_pending():
     trainings[mt.RETRIEVAL_ROW][0][1]["open_wine"]["seeds"] = [e + 100 for e in EPISODES]
     ow = _by_goal(grid_goals.goals(trainings, {"r0": ("OW",)}))["OW: refinement above retrieval"]
     assert ow["verdict"] == "pending" and ow["measured"] == "–" and ow["so_far"] == "0 of 1 training"
+
+
+def test_the_readme_line_counts_the_goals_and_names_the_decided_ones():
+    from readjax.lab import readme_tables
+    read = {"r0": {c: 18 for c in tasks.AVG16}, "r1": {c: 18 for c in EIGHT}}
+    ret = {"r0": {c: (4 if c == "OW" else 18) for c in tasks.AVG16}, "r1": {c: (4 if c == "OW" else 18) for c in EIGHT}}
+    det = {"d0": {c: 12 for c in tasks.AVG16}, "d1": {c: 12 for c in EIGHT if c != "PU"}}  # one pair still running
+    line = readme_tables.goals_line(_trainings(read, ret, det), PLAN)
+    verdicts = [g["verdict"] for g in grid_goals.goals(_trainings(read, ret, det), PLAN)]
+    assert (verdicts.count("met"), verdicts.count("missed"), verdicts.count("pending")) == (3, 5, 1)
+    assert "3 met, 5 missed, 1 pending until every training has its tasks (met: READ Avg12 ≥ 85, READ Avg16 ≥ 70, " \
+           "OW: refinement above retrieval; missed: PC: refinement above retrieval, PH: " in line

@@ -166,7 +166,8 @@ def results_readme() -> str:
 
 def readme_page() -> str:
     """README.md's generated blocks (the compact main table, the baselines); the rest of it is written by hand."""
-    return readme_tables.readme(Path("README.md"), RESULTS, MAIN_RUNS, BASELINE_ROLES, MAIN_SUITE, GRID, GRID_SUITE)
+    return readme_tables.readme(Path("README.md"), RESULTS, MAIN_RUNS, BASELINE_ROLES, MAIN_SUITE, GRID, GRID_SUITE,
+                                GRID_TASKS)
 
 
 PAGES = {

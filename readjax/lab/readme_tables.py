@@ -18,7 +18,7 @@ import re
 import numpy as np
 
 from readjax import tasks
-from readjax.lab import claims, difficulty, main_table, main_table_seeds, paper
+from readjax.lab import claims, difficulty, grid_goals, main_table, main_table_seeds, paper
 from readjax.lab.replicates import across_trainings
 from readjax.lab.report import collect
 from readjax.lab.result_record import eval_config_of
@@ -122,10 +122,12 @@ def main_lines(results: list[dict], read_run: str, det_run: str, suite: int, pre
 
 
 def trainings_lines(results: list[dict], mine: list[dict], read_runs: list[str], det_runs: list[str], suite: int,
-                    preset_name: str = "cpu", recipe_runs: list[str] = ()) -> list[str]:
+                    preset_name: str = "cpu", recipe_runs: list[str] = (), plan=None) -> list[str]:
     """The compact main table over several trainings per role (``mine``: the suite's results): each
     row's Avg12 / Avg16 as the mean and range over its trainings' own averages, as docs/results.md's;
-    ``recipe_runs``: the paper's recipe, a row of its own. A training not measured yet is said so."""
+    ``recipe_runs``: the paper's recipe, a row of its own. A training not measured yet is said so.
+    Below it, the count of the goals against the paper's (:mod:`readjax.lab.grid_goals`, ``plan``: run ->
+    the tasks it is planned on)."""
     refinement = main_table.refinement_of(preset_name)
     trainings, _ = main_table_seeds.select_trainings(mine, read_runs, det_runs, refinement, list(recipe_runs))
     means = main_table_seeds.summary(trainings, main_table_seeds.common_tasks(trainings))
@@ -159,7 +161,20 @@ def trainings_lines(results: list[dict], mine: list[dict], read_runs: list[str],
                   + (" ‡ a test split with no 100 % ground-truth replay on record: " + ", ".join(unverified) + "."
                      if unverified else "")
                   + " Per task, each training's row, paired tests pooled over trainings, failures by mode: "
-                  "[docs/results.md](docs/results.md)."]
+                  "[docs/results.md](docs/results.md).", "", goals_line(trainings, plan)]
+
+
+def goals_line(trainings, plan=None) -> str:
+    """How many of the goals against the paper's READ are met, missed and pending, naming the met and
+    missed ones."""
+    rows = grid_goals.goals(trainings, plan)
+    by = {v: [g["goal"].split(" (")[0] for g in rows if g["verdict"] == v] for v in ("met", "missed", "pending")}
+    named = "; ".join(f"{v}: {', '.join(by[v])}" for v in ("met", "missed") if by[v])
+    return (f"The goals against the paper's READ (Avg12 ≥ {grid_goals.AVG_GOALS['Avg12']:.0f}, Avg16 ≥ "
+            f"{grid_goals.AVG_GOALS['Avg16']:.0f}, READ above Deterministic, refinement above retrieval on "
+            f"{', '.join(grid_goals.REFINEMENT_TASKS)}): {len(by['met'])} met, {len(by['missed'])} missed, "
+            f"{len(by['pending'])} pending until every training has its tasks" + (f" ({named})" if named else "")
+            + "; each with its numbers in [docs/results.md](docs/results.md).")
 
 
 def baselines_lines(results: list[dict], roles: dict[str, str], suite: int, preset_name: str = "cpu") -> list[str]:
@@ -203,14 +218,15 @@ def splice(text: str, marker: str, lines: list[str]) -> str:
     return pattern.sub(lambda _: "\n".join([marker, *lines, END]), text, count=1)
 
 
-def grid_lines(results: list[dict], grid: dict[str, tuple[str, ...]], suite: int, preset_name: str = "cpu") -> list[str]:
+def grid_lines(results: list[dict], grid: dict[str, tuple[str, ...]], suite: int, preset_name: str = "cpu",
+               plan=None) -> list[str]:
     """The compact main table of a grid of trainings on ``suite`` (``grid``: ``read`` / ``deterministic`` /
     ``recipe`` -> run names, one per ``train.seed``), or nothing while no READ training of it is measured."""
     mine = _suite_results(results, suite)
     if not main_table_seeds.any_measured(mine, grid["read"]):
         return []
     return trainings_lines(results, mine, list(grid["read"]), list(grid["deterministic"]), suite, preset_name,
-                           list(grid.get("recipe", ())))
+                           list(grid.get("recipe", ())), plan)
 
 
 def grid_has_all_tasks(results: list[dict], grid: dict[str, tuple[str, ...]], suite: int,
@@ -224,14 +240,15 @@ def grid_has_all_tasks(results: list[dict], grid: dict[str, tuple[str, ...]], su
 
 
 def readme(path, results_root: str, main_runs: tuple[str, str], baseline_roles: dict[str, str], suite: int,
-           grid: dict[str, tuple[str, ...]] | None = None, grid_suite: int | None = None) -> str:
+           grid: dict[str, tuple[str, ...]] | None = None, grid_suite: int | None = None, grid_plan=None) -> str:
     """Rewrite the generated blocks of the README at ``path`` from ``results_root``; returns its text.
     ``grid`` (on ``grid_suite``): the current suite's trainings, its table first, ``main_runs``'s below it
-    until a READ training of the grid has all 16 tasks (then in docs/results.md only)."""
+    until a READ training of the grid has all 16 tasks (then in docs/results.md only); ``grid_plan``: run -> the
+    tasks it is planned on, for the goals' count."""
     results = collect(results_root)
     roles = {**{r: r for r in claims.ROLES}, **baseline_roles}
     text = path.read_text()
-    current = grid_lines(results, grid, grid_suite) if grid else []
+    current = grid_lines(results, grid, grid_suite, plan=grid_plan) if grid else []
     comparable = difficulty.comparability_line(difficulty.load_records(results_root, grid_suite)) if current else ""
     current += ["", comparable] if comparable else []
     older = [] if grid and grid_has_all_tasks(results, grid, grid_suite) else main_lines(results, *main_runs, suite)
