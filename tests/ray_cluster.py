@@ -101,13 +101,19 @@ def results_of(root: Path) -> dict:
     return out
 
 
+NODE_MEMORY = 4 * 1024 ** 3  # what each node offers the steps (the largest asks 3 GiB): fixed, so that where
+# the steps run does not depend on how much memory the machine has free when a node starts (busy machines
+# gave the second node less than a step asks, and every step ran on the head)
+
+
 def _cluster(n_nodes: int = 2):
-    """A local cluster of ``n_nodes`` nodes of one CPU each (the first its head) on 127.0.0.1."""
+    """A local cluster of ``n_nodes`` nodes of one CPU and :data:`NODE_MEMORY` each (the first its head) on
+    127.0.0.1."""
     from ray.cluster_utils import Cluster
 
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "memory": NODE_MEMORY})
     for _ in range(n_nodes - 1):
-        cluster.add_node(num_cpus=1)
+        cluster.add_node(num_cpus=1, memory=NODE_MEMORY)
     cluster.wait_for_nodes()
     return cluster
 
