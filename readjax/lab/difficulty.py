@@ -24,7 +24,7 @@ from readjax import atomic_write, failure_modes, provenance, retrieval, tasks
 from readjax import motion as motion_lib
 from readjax.data import store
 from readjax.data.guard import check_scene_images
-from readjax.lab import paper, verification
+from readjax.lab import main_table, paper, verification
 from readjax.sim.execute import execute_motions, execution_record
 
 FOLDER = "difficulty"
@@ -137,12 +137,8 @@ def _paper(i: int, code: str) -> str:
 def oracle_rates(records: dict[str, dict], i: int = 1) -> dict[str, float]:
     """Task code -> the oracle's success % copying the i-th nearest training demonstration, with Avg12 /
     Avg16 where every member task has a record."""
-    rates = {r["code"]: 100.0 * r["ranks"][str(i)]["success_rate"] for r in records.values()
-             if str(i) in r.get("ranks", {})}
-    for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
-        if all(c in rates for c in codes):
-            rates[name] = float(np.mean([rates[c] for c in codes]))
-    return rates
+    return main_table.with_averages({r["code"]: 100.0 * r["ranks"][str(i)]["success_rate"] for r in records.values()
+                                     if str(i) in r.get("ranks", {})}, [])
 
 
 def comparability_line(records: dict[str, dict]) -> str:

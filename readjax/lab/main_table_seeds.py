@@ -113,11 +113,11 @@ def summary(trainings: Trainings, measured: list[str]) -> dict[str, dict[str, tu
         cols = {c for t in tables for c in t}
         out[row] = {c: (float(np.mean(v)), min(v), max(v), len(v))
                     for c in cols for v in [[t[c] for t in tables if c in t]]}
-        task_means = {c: v[0] for c, v in out[row].items() if c in tasks.AVG16}
-        for name, codes in (("Avg12", tasks.AVG12), ("Avg16", tasks.AVG16)):
+        of_task_means = mt.with_averages({c: v[0] for c, v in out[row].items() if c in tasks.AVG16}, [])
+        for name in ("Avg12", "Avg16"):
             partial = name not in out[row] or out[row][name][3] < len(runs)
-            if partial and all(c in task_means for c in codes):
-                out[row][name] = (paper.mean_over(task_means, codes), float("nan"), float("nan"), 0)
+            if partial and name in of_task_means:
+                out[row][name] = (of_task_means[name], float("nan"), float("nan"), 0)
     return out
 
 
