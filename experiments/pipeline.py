@@ -176,14 +176,11 @@ def dry_run(steps, prior, results) -> None:
         print(f"to run: {todo} steps (no timing records under {results} to price them yet)")
 
 
-def main(argv=None) -> int:
-    args = parser().parse_args(argv)
+def config(args: argparse.Namespace):
+    """The grid (a validated :class:`PipelineConfig`) that parsed arguments ask for."""
     from readjax import tasks
-    from readjax.lab import pipeline, ray_grid, timing
     from readjax.lab.pipeline_config import ChoiceGrid, PipelineConfig
-    from readjax.lab.steps import PipelineError
 
-    resources = ray_grid.parse_resources(args.resources)
     if any(n < 0 for n in args.read_N):
         raise ValueError(f"--read-N values must be >= 0, got {args.read_N}")
     names = tasks.names() if args.tasks == ["all"] else tuple(args.tasks)
@@ -209,6 +206,16 @@ def main(argv=None) -> int:
         protocols=tuple(args.protocols), noise=args.noise, brightness=args.brightness,
         val_episodes=args.val_episodes, choice_grid=grid, fixed_refinement=tuple(args.fixed_refinement),
         protocol_runs=tuple(args.protocol_runs)).validate()
+    return cfg
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    from readjax.lab import pipeline, ray_grid, timing
+    from readjax.lab.steps import PipelineError
+
+    resources = ray_grid.parse_resources(args.resources)
+    cfg = config(args)
     try:
         steps = pipeline.plan_steps(cfg)
     except PipelineError as e:

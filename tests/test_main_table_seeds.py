@@ -169,7 +169,7 @@ def test_the_papers_recipe_is_a_row_of_its_own_paired_against_read(tmp_path):
 
 
 def test_a_grid_still_running_lists_the_trainings_not_measured_yet(tmp_path):
-    """The pages' current-suite table (pages.GRID) while the grid runs: the trainings measured so far
+    """The pages' current-suite table (grid_plan.GRID) while the grid runs: the trainings measured so far
     fill the means with n=k, the rest are named as not measured yet, positions still pair READ's i-th with
     Deterministic's i-th, and the README's compact rows say how many tasks are in."""
     from readjax.lab import main_table, main_table_seeds

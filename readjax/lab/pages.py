@@ -19,6 +19,7 @@ from pathlib import Path
 from readjax import tasks
 from readjax.lab import (claims, cost_table, difficulty, difficulty_why, grid_goals, main_table,
                          main_table_seeds, protocol_tables, readme_tables)
+from readjax.lab.grid_plan import GRID, GRID_SUITE, GRID_TASKS  # the current suite's main table (issue 52)
 from readjax.lab.report import write_report
 from readjax.tables import of_suite, suite_mark, suite_note
 
@@ -26,16 +27,6 @@ RESULTS = "results"
 # the runs each page reports (committed under results/<task>/<run>/)
 MAIN_RUNS = ("read_v3_5k", "deterministic_v3_5k")  # the main table of suite 1
 MAIN_SUITE = 1
-# the current suite's main table (issue 52's grid): trainings per role, one per train.seed, and the paper's recipe
-GRID = {"read": ("read_s2", "read_s2_seed1", "read_s2_seed2"),
-        "deterministic": ("deterministic_s2", "deterministic_s2_seed1", "deterministic_s2_seed2"),
-        "recipe": ("read_s2_paper",)}
-GRID_SUITE = tasks.SUITE_VERSION
-# where each of the grid's trainings runs: seed 0 on all 16 tasks, the other seeds and the paper's recipe on
-# the eight tasks where the paper's refinement mattered or ours differed most (issue 52, 3)
-SEEDED = ("PC", "RT", "PB", "OW", "CB", "PH", "PK", "PU")
-GRID_TASKS = {run: tasks.AVG16 if run in (GRID["read"][0], GRID["deterministic"][0]) else SEEDED
-              for runs in GRID.values() for run in runs}
 MARK = suite_mark({"suite": MAIN_SUITE})  # how the tables' row labels mark the pages' suite (" [suite 1]")
 BASELINE_ROLES = {"read": "read_v3_5k_rep", "deterministic": "deterministic_conv", "vpsde": "vpsde_conv",
                   "vpsde_cg": "vpsde_cg_conv", "read_o": "read_o_cd_conv", "read_l": "read_l_conv",

@@ -1,0 +1,73 @@
+"""The grid that runs (experiments.main_grid's pipeline commands) is the grid the pages report against
+(readjax.lab.grid_plan.GRID / GRID_TASKS), and its paper's-recipe row reverts every departure of the cpu
+preset."""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+
+from experiments import main_grid, pipeline
+from readjax import config, tasks
+from readjax.lab import grid_plan
+from readjax.lab.pipeline_config import label_configs
+
+
+def _configs():
+    return {phase: pipeline.config(pipeline.parser().parse_args(argv))
+            for phase, argv in grid_plan.pipeline_argvs().items()}
+
+
+def test_the_commands_train_each_planned_run_on_exactly_its_planned_tasks():
+    trained: dict[str, set[str]] = {}
+    for cfg in _configs().values():
+        for label in cfg.methods:
+            trained.setdefault(cfg.run_name(label), set()).update(tasks.code_of(t) for t in cfg.tasks)
+    assert trained == {run: set(codes) for run, codes in grid_plan.GRID_TASKS.items()}
+
+
+def test_phase_a_runs_before_phase_b_and_b_adds_seeds_recipe_and_protocols():
+    cfgs = _configs()
+    assert list(cfgs) == ["A", "B"]
+    assert cfgs["A"].protocols == () and set(cfgs["B"].protocols) == set(grid_plan.PROTOCOLS)
+    assert cfgs["B"].protocol_runs == grid_plan.GRID["recipe"]
+    assert cfgs["B"].fixed_refinement == grid_plan.GRID["recipe"]
+    for cfg in cfgs.values():
+        assert cfg.read_N == grid_plan.READ_N and cfg.val_episodes > 0 and cfg.preset == "cpu"
+        assert not any(cfg.chooses(label) for label in grid_plan.GRID["recipe"] if label in cfg.methods)
+
+
+def test_each_seed_run_differs_from_seed_0_only_in_its_seed():
+    cfg = _configs()["B"]
+    for role in ("read", "deterministic"):
+        base = label_configs(cfg, role)
+        for seed, run in enumerate(grid_plan.GRID[role]):
+            mine = label_configs(cfg, run if seed else role)
+            assert mine["train"].seed == seed
+            assert {k: v for k, v in mine.items() if k != "train"} == {k: v for k, v in base.items() if k != "train"}
+
+
+def test_the_papers_recipe_reverts_every_departure_of_the_cpu_preset_but_the_sizes():
+    cfg = _configs()["B"]
+    mine = label_configs(cfg, grid_plan.GRID["recipe"][0])
+    paper, cpu = config.presets("paper"), config.presets("cpu")
+    sizes = {"denoiser": {"image_size", "conv_dims", "enc_depths", "dec_depths", "drop_path", "feature_channels",
+                          "d_model", "layers", "heads", "ffn"},
+             "vae": {"width", "layers", "heads", "ffn", "latent_dim"},
+             "train": {"vae_steps", "vae_batch", "vae_lr", "steps", "batch", "lr", "lr_decay", "lr_decay_every",
+                       "ckpt_every", "log_every"}}
+    for section in ("vae", "denoiser", "sde", "train"):
+        for field, cpu_value in vars(cpu[section]).items():
+            want = cpu_value if field in sizes.get(section, ()) else getattr(paper[section], field)
+            assert getattr(mine[section], field) == want, f"{section}.{field}"
+
+
+@pytest.mark.parametrize("phases", [["A"], ["A", "B"], ["B"]])
+def test_main_grid_prints_one_pipeline_command_per_phase_in_order(phases, capsys):
+    assert main_grid.main(["--print", "--phases", *phases, "--", "--ray-address", "h:1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in out] == [f"# phase {p}" for p in phases]
+    cmds = main_grid.commands(phases, ["--", "--ray-address", "h:1"], dry_run=True)
+    assert all(c[:3] == [sys.executable, "-m", "experiments.pipeline"] and c[-3:] == ["--ray-address", "h:1", "--dry-run"]
+               for c in cmds)
