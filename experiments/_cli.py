@@ -77,16 +77,16 @@ def read_json_record(path, key: str, what: str) -> dict:
 def add_ray_arguments(p: argparse.ArgumentParser, what: str) -> None:
     """--ray-address and --resources: where experiments.pipeline and experiments.sweep run their steps
     (:mod:`readjax.lab.ray_grid`), and what a ``what`` of each kind asks of a node."""
-    from readjax.lab import ray_grid
+    from readjax.lab import ray_resources
 
-    shown = "; ".join(f"{kind} " + ", ".join(f"{k}={v / ray_grid.GIB:g} GiB" if k == "memory" else f"{k}={v:g}"
+    shown = "; ".join(f"{kind} " + ", ".join(f"{k}={v / ray_resources.GIB:g} GiB" if k == "memory" else f"{k}={v:g}"
                                                for k, v in opts.items())
-                      for kind, opts in ray_grid.STEP_RESOURCES.items())
+                      for kind, opts in ray_resources.STEP_RESOURCES.items())
     p.add_argument("--ray-address", default=None, metavar="HOST:PORT",
                    help="the Ray cluster to run on (its head's address, as `ray start --head` prints it); default: "
                         "the RAY_ADDRESS variable, else an embedded Ray on this machine, as many steps at once as "
                         "it has cores")
     p.add_argument("--resources", nargs="+", default=[], metavar="KIND:KEY=VALUE,...",
                    help=f"what a {what} asks of the node that runs it, by KIND, beyond the defaults ({shown}; a "
-                        f"training also num_gpus=1/{ray_grid.TRAININGS_PER_GPU} where the cluster has GPUs); KEY "
+                        f"training also num_gpus=1/{ray_resources.TRAININGS_PER_GPU} where the cluster has GPUs); KEY "
                         f"num_cpus, num_gpus or memory (GiB), e.g. train:num_gpus=0.5,memory=8")

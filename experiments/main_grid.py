@@ -13,6 +13,7 @@ examples:
   python -m experiments.main_grid --dry-run               # each phase's steps: done / skip / todo, with ETAs
   nohup python -m experiments.main_grid >> grid.log 2>&1 &
   python -m experiments.main_grid --phases B -- --ray-address 10.0.0.1:6379
+  python -m experiments.main_grid -- --deadline +170m   # a 3-hour job: start nothing that would not land
 """
 
 from __future__ import annotations

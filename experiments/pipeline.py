@@ -39,7 +39,8 @@ heads each run), a line per finished step says where it ran with the elapsed tim
 10 minutes a line says what is under way and how far it has got (a training: its stages' steps). A
 step whose worker or node is lost is run again by Ray elsewhere (resuming what it left); a step that
 fails fails the steps that need it, the others run on, and the grid ends naming every failure.
-A kill loses at most the steps in progress; running the same command again skips what is done. An
+A kill loses at most the steps in progress; running the same command again skips what is done. A job with a
+wall-clock limit gives it as --deadline: no step starts that would end after it (priced as --dry-run prices it). An
 evaluation counts as done when RESULTS holds it on a test split whose replay is on record
 (RESULTS/<task>/verify/), so a fresh machine with only the committed results/ regenerates, verifies and
 trains only what an unfinished evaluation needs.
@@ -133,6 +134,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--brightness", type=float, default=PipelineConfig.brightness,
                    help="the perturbed protocol's brightness factor on the test RGB")
     _cli.add_ray_arguments(p, "step")
+    p.add_argument("--deadline", default=None, metavar="WHEN",
+                   help="a wall-clock limit (a SLURM --time, a lent machine): start no step expected to end after "
+                        "it (its time as --dry-run prices it), nor the steps that need one; the grid ends when the "
+                        "rest is done, naming how many were left, and a re-run goes on. WHEN: +DURATION (+90m, "
+                        "+3h), HH:MM (its next occurrence, local time) or an ISO date and time (2026-12-07T23:40)")
     p.add_argument("--dry-run", action="store_true",
                    help="list the steps, each done / skip (not needed) / todo, a todo step with its expected "
                         "time (from the timing records under --results) and a training under way with how far "
@@ -211,10 +217,11 @@ def config(args: argparse.Namespace):
 
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
-    from readjax.lab import pipeline, ray_grid, timing
+    from readjax.lab import deadline, pipeline, ray_grid, ray_resources, timing
     from readjax.lab.steps import PipelineError
 
-    resources = ray_grid.parse_resources(args.resources)
+    resources = ray_resources.parse_resources(args.resources)
+    until = None if args.deadline is None else deadline.parse(args.deadline)
     cfg = config(args)
     try:
         steps = pipeline.plan_steps(cfg)
@@ -229,7 +236,7 @@ def main(argv=None) -> int:
         signal.signal(signal.SIGTERM, _interrupt)
         summary = ray_grid.run_on_ray(steps, log=lambda m: print(m, flush=True), prior=timing.prior_costs(cfg.results),
                                       address=args.ray_address, log_dir=Path(cfg.runs) / "pipeline_logs",
-                                      resources=resources)
+                                      resources=resources, deadline=until)
     except PipelineError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

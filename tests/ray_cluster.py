@@ -4,9 +4,10 @@
     python -m tests.ray_cluster SCENARIO FOLDER [NODES]     # writes FOLDER/report.json
 
 ``two_nodes``: a tiny grid (:func:`fake_grid`) on a local two-node cluster (one CPU each), then the same
-grid on an embedded Ray (no address), then a grid with a failing step on the cluster. ``node_killed``: the
-tiny grid on two nodes, the node running a step killed during it. ``real_steps``: ``experiments.pipeline
---ray-address`` with real readjax steps (a tiny grid of reach_target) on two nodes. The steps of
+grid on an embedded Ray (no address), then a grid with a failing step on the cluster, then the grid on an
+embedded Ray with a deadline closer than a step's price. ``node_killed``: the tiny grid on two nodes,
+the node running a step killed during it. ``real_steps``: ``experiments.pipeline --ray-address`` with
+real readjax steps (a tiny grid of reach_target) on two nodes. The steps of
 :func:`fake_grid` are short processes without JAX, each writing a file made from the files it reads (so
 results depend on what ran before them) and a line to a ledger as it starts and as it ends.
 """
@@ -21,6 +22,7 @@ import time
 from pathlib import Path
 
 from readjax.lab import ray_grid, steps, timing
+from readjax.lab.deadline import DeadlineError
 
 TASKS = ("reach_target", "push_button")
 # a fake step's command: argv = LEDGER LABEL SECONDS OUTPUT [INPUT ...]
@@ -171,6 +173,19 @@ def two_nodes(folder: Path) -> dict:
     _in(folder / "local", lambda: ray_grid.run_on_ray(fake_grid(), log=logs.append, log_dir=Path("logs")))
     report["local_seconds"] = time.time() - t0
     report["local"] = results_of(folder / "local")
+
+    def with_deadline():  # train read priced at a day, the deadline an hour away: it and its evaluation wait
+        prior = {"label": {"train read": [86400.0]}, "kind": {}}
+        try:
+            ray_grid.run_on_ray(fake_grid(), log=logs.append, log_dir=Path("logs"), prior=prior,
+                                deadline=time.time() + 3600)
+        except DeadlineError as e:
+            return str(e)
+        return None
+
+    prepare(folder / "deadline")
+    report["deadline_error"] = _in(folder / "deadline", with_deadline)
+    report["deadline"] = {k: v for k, v in results_of(folder / "deadline").items() if k in ("files", "ledger")}
     report["in_order"] = in_order(folder / "in_order")
     report["log"] = logs
     return report

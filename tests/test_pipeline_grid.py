@@ -13,7 +13,7 @@ import pytest
 from experiments import _cli
 from experiments import pipeline as pipeline_cli
 from readjax import config, methods
-from readjax.lab import cost_table, pipeline, pipeline_config, ray_grid, timing, verification
+from readjax.lab import cost_table, pipeline, pipeline_config, ray_grid, ray_resources, timing, verification
 from readjax.lab.steps import PipelineError, Step, run_in_order
 from tests.pipeline_fakes import _fingerprint_from_summary  # noqa: F401 (an autouse fixture)
 
@@ -505,15 +505,15 @@ def test_what_a_step_asks_of_a_node(tmp_path):
     """Each kind asks for a CPU and memory; a training also a share of a GPU where the cluster has
     GPUs (the GPU nodes take the trainings, the CPU nodes the rest); --resources changes any of it,
     and a kind no node could run is refused instead of waiting for ever."""
-    plain = ray_grid.step_resources()
-    assert all(d["num_cpus"] == 1 and d["memory"] >= ray_grid.GIB and "num_gpus" not in d for d in plain.values())
-    gpu = ray_grid.step_resources(gpus=2)
-    assert gpu["train"]["num_gpus"] == pytest.approx(1 / ray_grid.TRAININGS_PER_GPU)
+    plain = ray_resources.step_resources()
+    assert all(d["num_cpus"] == 1 and d["memory"] >= ray_resources.GIB and "num_gpus" not in d for d in plain.values())
+    gpu = ray_resources.step_resources(gpus=2)
+    assert gpu["train"]["num_gpus"] == pytest.approx(1 / ray_resources.TRAININGS_PER_GPU)
     assert "num_gpus" not in gpu["evaluate"]
-    mine = ray_grid.step_resources(ray_grid.parse_resources(["train:num_gpus=0.5,memory=1.5", "evaluate:num_cpus=2"]), 2)
-    assert mine["train"] == {"num_cpus": 1, "num_gpus": 0.5, "memory": int(1.5 * ray_grid.GIB)}
+    mine = ray_resources.step_resources(ray_resources.parse_resources(["train:num_gpus=0.5,memory=1.5", "evaluate:num_cpus=2"]), 2)
+    assert mine["train"] == {"num_cpus": 1, "num_gpus": 0.5, "memory": int(1.5 * ray_resources.GIB)}
     assert mine["evaluate"]["num_cpus"] == 2
-    node = {"Alive": True, "Resources": {"CPU": 2.0, "memory": 2.5 * ray_grid.GIB}}
-    ray_grid.check_fits(mine, ["evaluate"], [node])
+    node = {"Alive": True, "Resources": {"CPU": 2.0, "memory": 2.5 * ray_resources.GIB}}
+    ray_resources.check_fits(mine, ["evaluate"], [node])
     with pytest.raises(PipelineError, match=r"a train step asks \(CPU 1, GPU 0.5, memory 1.5 GiB\).*--resources train:"):
-        ray_grid.check_fits(mine, ["evaluate", "train"], [node, {"Alive": False, "Resources": {"GPU": 1.0}}])
+        ray_resources.check_fits(mine, ["evaluate", "train"], [node, {"Alive": False, "Resources": {"GPU": 1.0}}])

@@ -60,7 +60,8 @@ def test_a_two_node_cluster_runs_the_grid_as_an_embedded_ray_does(tmp_path):
     """A local cluster of two nodes (one CPU each) runs a tiny grid end to end, both nodes running
     steps, each after the steps it needs; its results equal those of the same grid on an embedded Ray
     (no address) and those of the steps run one after the other without Ray. A failing step fails the
-    steps that need it, and only those: the rest of the grid runs and the error names both."""
+    steps that need it, and only those: the rest of the grid runs and the error names both. With a deadline, a
+step whose expected time would end after it is not started, nor are the steps that need it."""
     report = _scenario("two_nodes", tmp_path)
     assert report["ips"] == ["127.0.0.1", "127.0.0.1"]  # every byte on loopback
     assert set(report["placement"].values()) == set(report["nodes"])  # both nodes ran steps
@@ -77,6 +78,11 @@ def test_a_two_node_cluster_runs_the_grid_as_an_embedded_ray_does(tmp_path):
     assert "push_button: `train read` failed (exit 3)" in report["failure"] and "the error" in report["failure"]
     assert "push_button: `evaluate read` not run: it needs `train read`, which failed" in report["failure"]
     assert sorted(report["failing"]["files"]) == sorted(f for f in expected["files"] if f != "results/push_button/evaluate_read")
+    # with a deadline closer than a step's price: that step and the steps needing it wait, the rest runs
+    assert report["deadline_error"].startswith("4 steps not started: they would end after the deadline")
+    assert sorted(report["deadline"]["files"]) == sorted(f for f in expected["files"] if not f.endswith("evaluate_read"))
+    for ledger in report["deadline"]["ledger"].values():
+        assert "start train read" not in ledger and "done train deterministic" in ledger
 
 
 def test_a_node_lost_during_a_step_loses_that_step_only(tmp_path):

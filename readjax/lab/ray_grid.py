@@ -3,7 +3,7 @@
 :func:`run_on_ray` starts an embedded Ray on this machine (no address: as many steps at once as its
 CPUs allow) or joins a cluster (``address``, or the ``RAY_ADDRESS`` variable), and submits every step
 not yet done as a task declaring what it needs (:data:`STEP_RESOURCES`: a CPU each, a share of a GPU for
-a training where the cluster has GPUs, memory), its dependencies the tasks of the steps it ``needs``
+a training where the cluster has GPUs, memory: :mod:`readjax.lab.ray_resources`), its dependencies the tasks of the steps it ``needs``
 (their ObjectRefs): Ray starts it once they have finished, on any node. A task runs
 :func:`readjax.lab.steps.run_step` there: skipped if done by then, else its command, its output checked,
 its time recorded beside the results. What makes a step done stays on disk, so every node must see
@@ -11,7 +11,10 @@ the grid's folders at the same paths (a shared folder: NFS, a mounted bucket; do
 step whose worker or node is lost is retried by Ray (:data:`MAX_RETRIES`), on another node where one
 is left: the command dies with its worker, and a retry resumes what it left (or finds it done), so a
 lost node loses at most its steps in progress. A failed step fails the steps that need it, not the
-others: the grid runs on and names every failure at the end.
+others: the grid runs on and names every failure at the end. With a ``deadline`` (a job's wall-clock
+limit), a step is not started where its expected time (:func:`readjax.lab.timing.step_cost`) would end it
+after the deadline, nor are the steps that need it: the cores go to the steps that fit, and a re-run
+goes on from there.
 """
 
 from __future__ import annotations
@@ -22,76 +25,12 @@ import sys
 import time
 from typing import Callable
 
+from readjax.lab.deadline import DeadlineError, check_start, stamp, start_by
+from readjax.lab.ray_resources import check_fits, step_resources
 from readjax.lab.steps import PipelineError, Step, run_step, step_log_path
 from readjax.lab.timing import eta, hms
 
-GIB = 1024 ** 3
-# What a step asks of the node that runs it, by kind (Ray's task options; memory in bytes): one CPU
-# each, so a machine runs as many steps at once as it has cores, and memory: the tiny grid's steps
-# peak at 0.9-1.3 GB (RSS, measured: docs/cluster.md), the cpu preset's full-size ones were not
-# measured, hence the room. ``--resources KIND:KEY=VALUE,...`` changes them.
-STEP_RESOURCES = {
-    "generate": {"num_cpus": 1, "memory": 2 * GIB},
-    "verify": {"num_cpus": 1, "memory": 2 * GIB},
-    "train": {"num_cpus": 1, "memory": 3 * GIB},
-    "evaluate": {"num_cpus": 1, "memory": 2 * GIB},
-    "media": {"num_cpus": 1, "memory": 2 * GIB},
-    "choose": {"num_cpus": 1, "memory": 1 * GIB},  # reads the val evaluations' JSONs, writes the choice
-}
-# where the cluster has GPUs a training asks for this share of one (a GPU holds a dozen of the cpu
-# preset's trainings; JAX's preallocation is turned off for them), and only the trainings: the GPU
-# nodes take them, the CPU nodes the rest
-TRAININGS_PER_GPU = 12
 MAX_RETRIES = 3  # tries of a step after its first whose worker or node was lost
-
-
-def parse_resources(items) -> dict[str, dict]:
-    """``["train:num_gpus=0.5,memory=8", "evaluate:num_cpus=2"]`` -> {kind: {option: value}}, memory
-    given in GiB."""
-    out: dict[str, dict] = {}
-    for item in items:
-        kind, _, pairs = item.partition(":")
-        if kind not in STEP_RESOURCES or not pairs:
-            raise ValueError(f"--resources {item!r}: expected KIND:KEY=VALUE[,KEY=VALUE], KIND one of "
-                             f"{', '.join(STEP_RESOURCES)}")
-        for pair in pairs.split(","):
-            key, _, value = pair.partition("=")
-            if key not in ("num_cpus", "num_gpus", "memory"):
-                raise ValueError(f"--resources {item!r}: KEY is num_cpus, num_gpus or memory (GiB), got {key!r}")
-            try:
-                v = float(value)
-            except ValueError:
-                raise ValueError(f"--resources {item!r}: {key} must be a number, got {value!r}") from None
-            if v < 0:
-                raise ValueError(f"--resources {item!r}: {key} must be >= 0")
-            out.setdefault(kind, {})[key] = int(v * GIB) if key == "memory" else v
-    return out
-
-
-def step_resources(overrides: dict | None = None, gpus: float = 0.0) -> dict[str, dict]:
-    """Each kind's Ray options: :data:`STEP_RESOURCES`, a training's share of a GPU where the cluster
-    has ``gpus``, then ``overrides`` (:func:`parse_resources`)."""
-    out = {kind: dict(options) for kind, options in STEP_RESOURCES.items()}
-    if gpus > 0:
-        out["train"]["num_gpus"] = 1 / TRAININGS_PER_GPU
-    for kind, options in (overrides or {}).items():
-        out[kind].update(options)
-    return out
-
-
-_RAY_NAMES = {"num_cpus": "CPU", "num_gpus": "GPU", "memory": "memory"}
-
-
-def check_fits(demands: dict[str, dict], kinds, nodes: list[dict]) -> None:
-    """Refuse a grid with a kind of step that no node of the cluster could ever run (Ray would wait
-    for it forever): naming the kind, what it asks and how to ask for less."""
-    totals = [n["Resources"] for n in nodes if n.get("Alive")]
-    for kind in sorted(set(kinds)):
-        ask = {name: demands[kind][k] for k, name in _RAY_NAMES.items() if demands[kind].get(k)}
-        if not any(all(node.get(k, 0) >= v for k, v in ask.items()) for node in totals):
-            shown = ", ".join(f"{k} {v / GIB:.1f} GiB" if k == "memory" else f"{k} {v:g}" for k, v in ask.items())
-            raise PipelineError(f"no node of the Ray cluster has what a {kind} step asks ({shown}); ask for less "
-                                f"with --resources {kind}:KEY=VALUE (docs/cluster.md)")
 
 
 def connect(address: str | None = None):
@@ -130,13 +69,16 @@ def _in_dependency_order(steps: list[Step]) -> list[int]:
     return order
 
 
-def _step_task(steps: list[Step], i: int, cwd: str, python: str, log_path, heartbeat: float, *needs) -> dict:
+def _step_task(steps: list[Step], i: int, cwd: str, python: str, log_path, heartbeat: float, latest, cost,
+               *needs) -> dict:
     """One step as a Ray task, on whichever node runs it (``needs``: the results of the steps it needs,
-    there only so that Ray starts it after them). The grid's relative paths are read from ``cwd``,
-    which every node must see; its ``python`` commands run with this node's Python."""
+    there only so that Ray starts it after them), unless it would start after ``latest``
+    (:func:`check_start`). The grid's relative paths are read from ``cwd``, which every node must see; its
+    ``python`` commands run with this node's Python."""
     import ray
 
     step = steps[i]
+    check_start(step, latest, cost)
     node, ip = ray.get_runtime_context().get_node_id(), ray.util.get_node_ip_address()
     if not os.path.isdir(cwd):
         raise PipelineError(f"{step.task}: `{step.label}`: the grid's folder {cwd} is not on node {ip}: every node "
@@ -167,12 +109,13 @@ def _remote():
 
 def run_on_ray(steps: list[Step], log: Callable[[str], None] = print, prior: dict | None = None,
                address: str | None = None, log_dir=None, heartbeat: float = 600.0, resources: dict | None = None,
-               on_finished: Callable[[Step], None] | None = None) -> dict:
+               on_finished: Callable[[Step], None] | None = None, deadline: float | None = None) -> dict:
     """Run the steps not yet done on Ray (see the module); each step's output goes to
     ``log_dir/<task>/<label>.log`` (a folder every node sees; None: the driver's terminal, through Ray).
     A line per finished step (where it ran, the elapsed time, the ETA priced by ``prior``:
     :func:`readjax.lab.timing.prior_costs`), and every ``heartbeat`` seconds a line with the steps
     under way and how far each has got. ``on_finished(step)`` here after each step that finished.
+    ``deadline`` (seconds since the epoch): no step starts that would end after it (:func:`start_by`).
     Returns {"ran", "skipped", "seconds": {kind: s}, "nodes": {(task, label): node id}}; raises
     PipelineError naming every failed step (and those not run for want of one) once the rest is done."""
     todo = [s for s in steps if not s.done()]
@@ -182,13 +125,13 @@ def run_on_ray(steps: list[Step], log: Callable[[str], None] = print, prior: dic
         return summary
     ray, connected = connect(address)
     try:
-        return _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, on_finished)
+        return _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, on_finished, deadline)
     finally:
         if connected:
             ray.shutdown()
 
 
-def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, on_finished) -> dict:
+def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, on_finished, deadline) -> dict:
     cluster, nodes = ray.cluster_resources(), [n for n in ray.nodes() if n.get("Alive")]
     demands = step_resources(resources, cluster.get("GPU", 0.0))
     check_fits(demands, [s.kind for s in todo], nodes)
@@ -202,9 +145,10 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
         s = todo[i]
         path = None if log_dir is None else step_log_path(log_dir, s)
         refs[i] = task.options(**demands[s.kind], max_retries=MAX_RETRIES, name=f"{s.task}: {s.label}").remote(
-            shared, i, os.getcwd(), sys.executable, path, heartbeat, *[refs[n] for n in needs[i]])
+            shared, i, os.getcwd(), sys.executable, path, heartbeat, *start_by(s, deadline, prior),
+            *[refs[n] for n in needs[i]])
     pending = {ref: i for i, ref in refs.items()}
-    finished, failed, failures = set(), set(), []
+    finished, failed, failures, late = set(), set(), [], set()
     by_kind: dict[str, list[float]] = {}
     by_label: dict[str, list[float]] = {}
     t_start = time.time()
@@ -220,7 +164,14 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
                 outcome = ray.get(ready[0])
             except Exception as e:  # noqa: BLE001  the step's own error, or one of a step it needs
                 failed.add(i)
-                lost = [todo[n].label for n in needs[i] if n in failed or _errored(ray, refs[n])]
+                lost_at = [n for n in needs[i] if n in failed or _errored(ray, refs[n])]
+                if isinstance(getattr(e, "cause", None), DeadlineError) or (lost_at and set(lost_at) <= late):
+                    if not late:
+                        log(f"deadline: steps that would end after {stamp(deadline)} are not started (the first: "
+                            f"{step.task}: {step.label})")
+                    late.add(i)
+                    continue
+                lost = [todo[n].label for n in lost_at]
                 why = f"not run: it needs `{lost[0]}`, which failed" if lost else _reason(e)
                 failures.append(why if isinstance(getattr(e, "cause", None), PipelineError) and not lost
                                 else f"{step.task}: `{step.label}` {why}")
@@ -247,8 +198,13 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
         ray.wait(list(pending), num_returns=len(pending), timeout=60)
         raise
     summary["seconds"] = {k: sum(v) for k, v in by_kind.items()}
+    if late:
+        failures.append(f"{len(late)} steps not started: they would end after the deadline ({stamp(deadline)}); "
+                        f"first `{todo[min(late)].task}: {todo[min(late)].label}`")
+        log(f"deadline: {len(late)} steps not started, to run on a re-run")
     if failures:
-        raise PipelineError("; ".join(failures) + "\nfix it and re-run: finished steps are skipped")
+        raise (DeadlineError if len(failures) == 1 and late else PipelineError)(
+            "; ".join(failures) + "\nre-run the same command to go on: finished steps are skipped")
     return summary
 
 

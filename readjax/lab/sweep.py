@@ -25,7 +25,7 @@ from typing import Callable
 from readjax import _runtime, config, evaluation, methods, stage_folder, tasks
 from readjax.data import store
 from readjax.data.generate import GenerateConfig, generate
-from readjax.lab import ray_grid, sweep_table
+from readjax.lab import ray_grid, ray_resources, sweep_table
 from readjax.lab.steps import Step, train_command
 from readjax.lab.sweep_cells import (cell_diagnostics, check_reference_run, committed_cells,
                                      is_trained, reusable_evaluation, run_label, vae_trace)
@@ -43,7 +43,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True, execute: Callable | None 
     n_values = cfg.grid.get("N", [DEFAULTS["N"]])
     if cfg.vary not in ("all", "one"):
         raise ValueError(f"vary must be 'all' or 'one', got {cfg.vary!r}")
-    ray_grid.parse_resources(cfg.resources)  # a mistake there fails now, not after the test split's generation
+    ray_resources.parse_resources(cfg.resources)  # a mistake there fails now, not after the test split's generation
     test_dir = store.split_dir(cfg.data, task, "test")
     if not test_dir.exists() or store.read_progress(test_dir).kept < cfg.episodes:
         generate(GenerateConfig(task=task, split="test", episodes=cfg.episodes, out=cfg.data,
@@ -102,7 +102,7 @@ def run_sweep(cfg: SweepConfig, progress: bool = True, execute: Callable | None 
     if steps:
         run = execute or (lambda steps, **kw: ray_grid.run_on_ray(
             steps, address=cfg.ray_address, log_dir=sweep_dir / "logs",
-            resources=ray_grid.parse_resources(cfg.resources), **kw))
+            resources=ray_resources.parse_resources(cfg.resources), **kw))
         run(steps, log=print if progress else (lambda _: None), on_finished=evaluate_ready)
     evaluate_ready()
     return published["out"]

@@ -66,7 +66,7 @@ class SweepConfig:
     # varied alone from it (the other keys at A's values; N varied at A's training only)
     vary: str = "all"
     # the Ray cluster the cells train on (None: RAY_ADDRESS, else an embedded Ray on this machine), and
-    # what a training asks of a node there beyond ray_grid.STEP_RESOURCES (``--resources``: train:KEY=VALUE,...)
+    # what a training asks of a node there beyond ray_resources.STEP_RESOURCES (``--resources``: train:KEY=VALUE,...)
     ray_address: str | None = None
     resources: tuple = ()
     # also keep committed cells measured on the same seeds but another version of the test split (another
