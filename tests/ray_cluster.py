@@ -183,12 +183,30 @@ def two_nodes(folder: Path) -> dict:
             return str(e)
         return None
 
+    report["sigterm_kept"] = _sigterm_kept()
     prepare(folder / "deadline")
     report["deadline_error"] = _in(folder / "deadline", with_deadline)
     report["deadline"] = {k: v for k, v in results_of(folder / "deadline").items() if k in ("files", "ledger")}
     report["in_order"] = in_order(folder / "in_order")
     report["log"] = logs
     return report
+
+
+def _sigterm_kept() -> bool:
+    """Whether a SIGTERM handler set before an embedded Ray starts (the CLI's) still gets the signal."""
+    import os
+    import signal
+
+    got = []
+    old = signal.signal(signal.SIGTERM, lambda signum, frame: got.append(signum))
+    ray, _ = ray_grid.connect(None)
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.5)
+    finally:
+        ray.shutdown()
+        signal.signal(signal.SIGTERM, old)
+    return got == [signal.SIGTERM]
 
 
 def node_killed(folder: Path) -> dict:

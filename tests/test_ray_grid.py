@@ -78,6 +78,7 @@ step whose expected time would end after it is not started, nor are the steps th
     assert "push_button: `train read` failed (exit 3)" in report["failure"] and "the error" in report["failure"]
     assert "push_button: `evaluate read` not run: it needs `train read`, which failed" in report["failure"]
     assert sorted(report["failing"]["files"]) == sorted(f for f in expected["files"] if f != "results/push_button/evaluate_read")
+    assert report["sigterm_kept"]  # `kill` reaches the CLI's handler, which stops the steps under way
     # with a deadline closer than a step's price: that step and the steps needing it wait, the rest runs
     assert report["deadline_error"].startswith("4 steps not started: they would end after the deadline")
     assert sorted(report["deadline"]["files"]) == sorted(f for f in expected["files"] if not f.endswith("evaluate_read"))

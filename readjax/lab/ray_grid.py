@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
+import threading
 import time
 from typing import Callable
 
@@ -42,7 +44,12 @@ def connect(address: str | None = None):
         return ray, False
     address = address or os.environ.get("RAY_ADDRESS") or "local"
     kwargs = {"include_dashboard": False} if address == "local" else {}
+    handler = signal.getsignal(signal.SIGTERM)
     ray.init(address=address, logging_level=logging.WARNING, **kwargs)
+    if callable(handler) and threading.current_thread() is threading.main_thread():
+        # ray.init installs its own, which ends the process at once: keep the caller's (the CLI's `kill` as Ctrl-C,
+        # which stops the steps under way and records their time so far)
+        signal.signal(signal.SIGTERM, handler)
     return ray, True
 
 
