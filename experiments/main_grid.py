@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import shlex
+import signal
 import subprocess
 import sys
 
@@ -47,6 +48,16 @@ def commands(phases, extra=(), dry_run: bool = False) -> list[list[str]]:
             for ph in phases]
 
 
+def _run(cmd: list[str]) -> int:
+    """Run one phase; a SIGTERM to this process goes on to it (the pipeline stops its steps and records them)."""
+    child = subprocess.Popen(cmd)
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: child.send_signal(signum))
+    try:
+        return child.wait()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     cmds = commands(args.phases, args.extra, args.dry_run)
@@ -54,7 +65,7 @@ def main(argv=None) -> int:
         print(f"# phase {phase}: " + shlex.join(cmd[1:]), flush=True)
         if args.print:
             continue
-        rc = subprocess.call(cmd)
+        rc = _run(cmd)
         if rc:
             print(f"phase {phase} ended with status {rc}; re-run this command to resume", file=sys.stderr)
             return rc

@@ -71,3 +71,19 @@ def test_main_grid_prints_one_pipeline_command_per_phase_in_order(phases, capsys
     cmds = main_grid.commands(phases, ["--", "--ray-address", "h:1"], dry_run=True)
     assert all(c[:3] == [sys.executable, "-m", "experiments.pipeline"] and c[-3:] == ["--ray-address", "h:1", "--dry-run"]
                for c in cmds)
+
+
+def test_a_sigterm_to_main_grid_goes_on_to_the_running_phase():
+    """`kill` on main_grid reaches the pipeline it runs (which stops its steps), not only main_grid."""
+    import os
+    import signal
+    import threading
+
+    child = [sys.executable, "-c", "import signal, sys, time\n"
+             "signal.signal(signal.SIGTERM, lambda s, f: sys.exit(7))\nprint('ready', flush=True)\ntime.sleep(60)"]
+    timer = threading.Timer(2.0, lambda: os.kill(os.getpid(), signal.SIGTERM))
+    timer.start()
+    try:
+        assert main_grid._run(child) == 7
+    finally:
+        timer.cancel()
