@@ -40,7 +40,7 @@ heads each run), a line per finished step says where it ran with the elapsed tim
 step whose worker or node is lost is run again by Ray elsewhere (resuming what it left); a step that
 fails fails the steps that need it, the others run on, and the grid ends naming every failure.
 A kill loses at most the steps in progress; running the same command again skips what is done. A job with a
-wall-clock limit gives it as --deadline: no step starts that would end after it (priced as --dry-run prices it). An
+wall-clock limit gives it as --deadline: no step starts that would, with the steps that need it, end after it. An
 evaluation counts as done when RESULTS holds it on a test split whose replay is on record
 (RESULTS/<task>/verify/), so a fresh machine with only the committed results/ regenerates, verifies and
 trains only what an unfinished evaluation needs.
@@ -135,9 +135,10 @@ def parser() -> argparse.ArgumentParser:
                    help="the perturbed protocol's brightness factor on the test RGB")
     _cli.add_ray_arguments(p, "step")
     p.add_argument("--deadline", default=None, metavar="WHEN",
-                   help="a wall-clock limit (a SLURM --time, a lent machine): start no step expected to end after "
-                        "it (its time as --dry-run prices it), nor the steps that need one; the grid ends when the "
-                        "rest is done, naming how many were left, and a re-run goes on. WHEN: +DURATION (+90m, "
+                   help="a wall-clock limit (a SLURM --time, a lent machine): start a step only where it and the "
+                        "steps that need it (shared among the steps run at once) are expected to end before it, "
+                        "priced as --dry-run prices them; the grid ends when the rest is done, naming how many "
+                        "were left, and a re-run goes on. WHEN: +DURATION (+90m, "
                         "+3h), HH:MM (its next occurrence, local time) or an ISO date and time (2026-12-07T23:40)")
     p.add_argument("--dry-run", action="store_true",
                    help="list the steps, each done / skip (not needed) / todo, a todo step with its expected "

@@ -28,27 +28,39 @@ def test_anything_else_or_a_past_time_is_refused_saying_the_forms(text):
         deadline.parse(text, NOW)
 
 
-def _step(label: str, kind: str) -> Step:
-    return Step(kind, "reach_target", label, ["true"], made=lambda: False)
+def _step(label: str, kind: str, task: str = "reach_target") -> Step:
+    return Step(kind, task, label, ["true"], made=lambda: False)
 
 
-def test_a_step_starts_only_while_its_expected_time_fits_before_the_deadline():
-    prior = {"label": {"train read": [3000.0, 3400.0]}, "kind": {"evaluate": [100.0]}}
-    train, evaluate = _step("train read", "train"), _step("evaluate read --N 100", "evaluate")
-    latest, cost = deadline.start_by(train, NOW + 3600, prior)
-    assert cost == 3200.0 and latest == NOW + 400
-    deadline.check_start(train, latest, cost, now=NOW + 399)
-    with pytest.raises(deadline.DeadlineError, match="`train read` not started: it takes about 0:53:20"):
-        deadline.check_start(train, latest, cost, now=NOW + 401)
-    assert deadline.start_by(evaluate, NOW + 3600, prior) == (NOW + 3500, 100.0)  # its kind's price
-    assert deadline.start_by(train, None, prior) == (None, 3200.0)
-    deadline.check_start(train, None, 3200.0, now=NOW + 10 ** 6)  # no deadline: always starts
+# a task's steps as the pipeline chains them: data -> training -> evaluations; and another task's evaluation
+GRID = [_step("generate test 100", "generate"), _step("train read", "train"), _step("evaluate read --N 0", "evaluate"),
+        _step("evaluate read --N 100", "evaluate"), _step("evaluate read --N 0", "evaluate", "push_button")]
+NEEDS = {0: [], 1: [0], 2: [1, 0], 3: [1, 0], 4: []}
+PRIOR = {"label": {"generate test 100": [200.0], "train read": [3000.0, 3400.0], "evaluate read --N 100": [300.0]},
+         "kind": {"evaluate": [100.0]}}
+
+
+def test_a_step_starts_only_where_it_and_the_steps_that_need_it_fit_before_the_deadline():
+    starts = deadline.latest_starts(GRID, NEEDS, NOW + 7200, PRIOR, slots=2)
+    # (latest start, own price, the steps that need it over 2 slots): a training's evaluations count with it,
+    # the data its training and evaluations; an evaluation of another task only itself
+    assert starts == [(NOW + 7200 - 200 - (3200 + 100 + 300) / 2, 200.0, 1800.0),
+                      (NOW + 7200 - 3200 - 200, 3200.0, 200.0),
+                      (NOW + 7200 - 100, 100.0, 0.0), (NOW + 7200 - 300, 300.0, 0.0), (NOW + 7200 - 100, 100.0, 0.0)]
+    assert deadline.latest_starts(GRID, NEEDS, NOW + 7200, PRIOR, slots=1)[0][2] == 3600.0
+    latest, cost, rest = starts[1]
+    deadline.check_start(GRID[1], latest, cost, rest, now=latest - 1)
+    with pytest.raises(deadline.DeadlineError, match="`train read` not started: it takes about 0:53:20 and the "
+                                                      "steps that need it about 0:03:20 more"):
+        deadline.check_start(GRID[1], latest, cost, rest, now=latest + 1)
+    assert [x[0] for x in deadline.latest_starts(GRID, NEEDS, None, PRIOR)] == [None] * 5  # no deadline
+    deadline.check_start(GRID[1], None, cost, rest, now=NOW + 10 ** 6)  # ... always starts
 
 
 def test_a_step_with_no_price_yet_starts_while_the_deadline_is_ahead():
     step = _step("generate test 100", "generate")
-    latest, cost = deadline.start_by(step, NOW + 60, None)
-    assert (latest, cost) == (NOW + 60, 0.0)
-    deadline.check_start(step, latest, cost, now=NOW + 59)
+    [(latest, cost, rest)] = deadline.latest_starts([step], {0: []}, NOW + 60, None)
+    assert (latest, cost, rest) == (NOW + 60, 0.0, 0.0)
+    deadline.check_start(step, latest, cost, rest, now=NOW + 59)
     with pytest.raises(deadline.DeadlineError):
-        deadline.check_start(step, latest, cost, now=NOW + 61)
+        deadline.check_start(step, latest, cost, rest, now=NOW + 61)

@@ -4,7 +4,10 @@ goes on from there (``experiments.pipeline --deadline``, :func:`readjax.lab.ray_
 
 A step's expected time is :func:`readjax.lab.timing.step_cost`: a training under way by its own pace,
 else the same step's recorded times on other tasks or runs, else its kind's. A step with no price yet
-is started while the deadline is ahead.
+is started while the deadline is ahead. What a step makes lands only once the steps that need it have
+run (a training is committed as its evaluations), and a machine given back at the deadline loses the
+rest (its data, its checkpoints): so a step starts only where it and every step that needs it, directly
+or not, fit before the deadline, the latter shared among the grid's ``slots`` (the steps run at once).
 """
 
 from __future__ import annotations
@@ -47,18 +50,35 @@ def parse(text: str, now: float | None = None) -> float:
     return at.timestamp()
 
 
-def start_by(step, deadline: float | None, prior: dict | None) -> tuple[float | None, float]:
-    """(the latest time ``step`` may start to end by ``deadline``, its expected seconds): the deadline less
-    its price (a step with no price yet: 0); (None, price) without a deadline."""
-    cost = step_cost(step, {}, {}, prior) or 0.0
-    return (None if deadline is None else deadline - cost), cost
+def latest_starts(todo: list, needs: dict[int, list[int]], deadline: float | None, prior: dict | None,
+                  slots: int = 1) -> list[tuple[float | None, float, float]]:
+    """Per step of ``todo`` (``needs``: the indices each one waits for): (the latest time it may start,
+    its expected seconds, the seconds of the steps that need it, directly or not, over ``slots``); the
+    latest start is the deadline less both (None without a deadline)."""
+    cost = [step_cost(s, {}, {}, prior) or 0.0 for s in todo]
+    users: dict[int, set[int]] = {i: set() for i in range(len(todo))}
+    for i, ns in needs.items():
+        for n in ns:
+            users[n].add(i)
+    out = []
+    for i in range(len(todo)):
+        after, stack = set(), list(users[i])
+        while stack:
+            j = stack.pop()
+            if j not in after:
+                after.add(j)
+                stack += users[j]
+        rest = sum(cost[j] for j in after) / max(1, slots)
+        out.append(((None if deadline is None else deadline - cost[i] - rest), cost[i], rest))
+    return out
 
 
-def check_start(step, latest: float | None, cost: float, now: float | None = None) -> None:
-    """Raise :class:`DeadlineError` where ``step`` would start after ``latest`` (:func:`start_by`)."""
+def check_start(step, latest: float | None, cost: float, rest: float = 0.0, now: float | None = None) -> None:
+    """Raise :class:`DeadlineError` where ``step`` would start after ``latest`` (:func:`latest_starts`)."""
     if latest is not None and (time.time() if now is None else now) > latest:
-        raise DeadlineError(f"{step.task}: `{step.label}` not started: it takes about {hms(cost)} and would end "
-                            f"after the deadline ({stamp(latest + cost)})")
+        then = f" and the steps that need it about {hms(rest)} more" if rest else ""
+        raise DeadlineError(f"{step.task}: `{step.label}` not started: it takes about {hms(cost)}{then}, which "
+                            f"would end after the deadline ({stamp(latest + cost + rest)})")
 
 
 def stamp(t: float) -> str:

@@ -27,7 +27,7 @@ import threading
 import time
 from typing import Callable
 
-from readjax.lab.deadline import DeadlineError, check_start, stamp, start_by
+from readjax.lab.deadline import DeadlineError, check_start, latest_starts, stamp
 from readjax.lab.ray_resources import check_fits, step_resources
 from readjax.lab.steps import PipelineError, Step, run_step, step_log_path
 from readjax.lab.timing import eta, hms
@@ -77,7 +77,7 @@ def _in_dependency_order(steps: list[Step]) -> list[int]:
 
 
 def _step_task(steps: list[Step], i: int, cwd: str, python: str, log_path, heartbeat: float, latest, cost,
-               *needs) -> dict:
+               rest, *needs) -> dict:
     """One step as a Ray task, on whichever node runs it (``needs``: the results of the steps it needs,
     there only so that Ray starts it after them), unless it would start after ``latest``
     (:func:`check_start`). The grid's relative paths are read from ``cwd``, which every node must see; its
@@ -85,7 +85,7 @@ def _step_task(steps: list[Step], i: int, cwd: str, python: str, log_path, heart
     import ray
 
     step = steps[i]
-    check_start(step, latest, cost)
+    check_start(step, latest, cost, rest)
     node, ip = ray.get_runtime_context().get_node_id(), ray.util.get_node_ip_address()
     if not os.path.isdir(cwd):
         raise PipelineError(f"{step.task}: `{step.label}`: the grid's folder {cwd} is not on node {ip}: every node "
@@ -122,7 +122,8 @@ def run_on_ray(steps: list[Step], log: Callable[[str], None] = print, prior: dic
     A line per finished step (where it ran, the elapsed time, the ETA priced by ``prior``:
     :func:`readjax.lab.timing.prior_costs`), and every ``heartbeat`` seconds a line with the steps
     under way and how far each has got. ``on_finished(step)`` here after each step that finished.
-    ``deadline`` (seconds since the epoch): no step starts that would end after it (:func:`start_by`).
+    ``deadline`` (seconds since the epoch): no step starts that would, with the steps that need it, end
+    after it (:func:`readjax.lab.deadline.latest_starts`).
     Returns {"ran", "skipped", "seconds": {kind: s}, "nodes": {(task, label): node id}}; raises
     PipelineError naming every failed step (and those not run for want of one) once the rest is done."""
     todo = [s for s in steps if not s.done()]
@@ -148,11 +149,12 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
     shared, task, refs = ray.put(todo), _remote(), {}
     index = {id(s): i for i, s in enumerate(todo)}
     needs = {i: [index[id(n)] for n in s.needs if id(n) in index] for i, s in enumerate(todo)}
+    starts = latest_starts(todo, needs, deadline, prior, slots)
     for i in _in_dependency_order(todo):
         s = todo[i]
         path = None if log_dir is None else step_log_path(log_dir, s)
         refs[i] = task.options(**demands[s.kind], max_retries=MAX_RETRIES, name=f"{s.task}: {s.label}").remote(
-            shared, i, os.getcwd(), sys.executable, path, heartbeat, *start_by(s, deadline, prior),
+            shared, i, os.getcwd(), sys.executable, path, heartbeat, *starts[i],
             *[refs[n] for n in needs[i]])
     pending = {ref: i for i, ref in refs.items()}
     finished, failed, failures, late = set(), set(), [], set()
