@@ -4,6 +4,7 @@ preset."""
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 import pytest
@@ -31,6 +32,8 @@ def test_phase_a_runs_before_phase_b_and_b_adds_seeds_recipe_and_protocols():
     cfgs = _configs()
     assert list(cfgs) == ["A", "B"]
     assert cfgs["A"].protocols == () and set(cfgs["B"].protocols) == set(grid_plan.PROTOCOLS)
+    # Tables 5 and 8 on a READ training the same command trains (seed 1), and on the paper's recipe
+    assert cfgs["B"].run_name("read") == grid_plan.GRID["read"][1]
     assert cfgs["B"].protocol_runs == grid_plan.GRID["recipe"]
     assert cfgs["B"].fixed_refinement == grid_plan.GRID["recipe"]
     for cfg in cfgs.values():
@@ -38,19 +41,32 @@ def test_phase_a_runs_before_phase_b_and_b_adds_seeds_recipe_and_protocols():
         assert not any(cfg.chooses(label) for label in grid_plan.GRID["recipe"] if label in cfg.methods)
 
 
+def _labels(role: str) -> dict:
+    """{seed: (the phase's config, the label that trains it)} of a role's trainings."""
+    cfgs = _configs()
+    out = {}
+    for cfg in cfgs.values():
+        for label in cfg.methods:
+            if cfg.run_name(label) in grid_plan.GRID[role]:
+                out[grid_plan.GRID[role].index(cfg.run_name(label))] = (cfg, label)
+    return out
+
+
 def test_each_seed_run_differs_from_seed_0_only_in_its_seed():
-    cfg = _configs()["B"]
     for role in ("read", "deterministic"):
-        base = label_configs(cfg, role)
-        for seed, run in enumerate(grid_plan.GRID[role]):
-            mine = label_configs(cfg, run if seed else role)
+        trainings = _labels(role)
+        assert sorted(trainings) == [0, 1, 2]
+        configs = {k: label_configs(cfg, label) for k, (cfg, label) in trainings.items()}
+        for seed, mine in configs.items():
             assert mine["train"].seed == seed
-            assert {k: v for k, v in mine.items() if k != "train"} == {k: v for k, v in base.items() if k != "train"}
+            assert dataclasses.replace(mine["train"], seed=0) == configs[0]["train"]
+            assert {k: v for k, v in mine.items() if k != "train"} == {k: v for k, v in configs[0].items() if k != "train"}
 
 
 def test_the_papers_recipe_reverts_every_departure_of_the_cpu_preset_but_the_sizes():
     cfg = _configs()["B"]
     mine = label_configs(cfg, grid_plan.GRID["recipe"][0])
+    assert mine["train"].seed == 0  # paired with READ's seed 0 (the first of each row)
     paper, cpu = config.presets("paper"), config.presets("cpu")
     sizes = {"denoiser": {"image_size", "conv_dims", "enc_depths", "dec_depths", "drop_path", "feature_channels",
                           "d_model", "layers", "heads", "ffn"},

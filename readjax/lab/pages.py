@@ -70,7 +70,7 @@ def grid_section(results: list[dict], chart: Path) -> list[str]:
     return (main_table_seeds.lines(mine, list(GRID["read"]), list(GRID["deterministic"]), chart, "cpu", refinement,
                                    GRID_SUITE, list(GRID["recipe"]), in_progress=True,
                                    goals=partial(grid_goals.lines, plan=GRID_TASKS))
-            + protocol_tables.lines(mine, GRID["read"][0], refinement)
+            + [line for run in GRID["read"] for line in protocol_tables.lines(mine, run, refinement)]
             + [line for run in GRID["recipe"]
                for line in protocol_tables.lines(mine, run, main_table.refinement_of("paper"))]
             + cost_table.grid_cost_lines(RESULTS, [run for runs in GRID.values() for run in runs], GRID_SUITE))
