@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     from readjax import tasks
     from readjax.lab import choice as choice_lib
-    from readjax.lab.pipeline_config import RefineSetting
+    from readjax.lab.refine_setting import RefineSetting
 
     task = tasks.canonical_name(args.task)
     settings = list(dict.fromkeys(RefineSetting.parse(s) for s in args.setting))

@@ -10,7 +10,8 @@ import pytest
 from experiments import evaluate as evaluate_cli
 from readjax import config
 from readjax.lab import choice, report, verification
-from readjax.lab.pipeline_config import ChoiceGrid, EvalRequest, RefineSetting
+from readjax.lab.pipeline_config import ChoiceGrid, EvalRequest
+from readjax.lab.refine_setting import RefineSetting
 from readjax.lab.pipeline_results import finished_evaluation
 
 S = RefineSetting

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from readjax import atomic_write, provenance
 from readjax.lab import result_record, verification
-from readjax.lab.pipeline_config import PAPER_SETTING, RefineSetting
+from readjax.lab.refine_setting import PAPER_SETTING, RefineSetting
 
 FILE = "choice.json"
 VAL_FOLDER = "val"  # RUN/val/ and results/<task>/<run>/val/: the val evaluations, apart from eval/
