@@ -30,8 +30,9 @@ READ with the kinematics-aware autoencoder): a row of its own.
 The steps run on Ray (docs/cluster.md): with no --ray-address (nor RAY_ADDRESS) an embedded Ray on this
 machine runs as many at once as it has cores; --ray-address joins a cluster started with `ray start`,
 where each step is a task on whichever node has what it asks (--resources: a CPU each, a share of a GPU
-for a training where the cluster has GPUs, memory), started as soon as the steps it needs have
-finished (a task's data and replay before its trainings, a training before its evaluations). The same
+for a training where the cluster has GPUs, memory), started once the steps it needs have finished (a
+task's data and replay before its trainings, a training before its evaluations) and a CPU is free, in the
+grid's order (one task's steps before the next task's). The same
 command gives the same results/ either way. On a cluster every node must see --data, --runs and
 --results (and the folder the command is started from) at the same paths: a shared folder (NFS, a
 mounted bucket). Each step's output goes to RUNS/pipeline_logs/<task>/<step>.log (which node ran it

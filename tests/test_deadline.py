@@ -64,3 +64,18 @@ def test_a_step_with_no_price_yet_starts_while_the_deadline_is_ahead():
     deadline.check_start(step, latest, cost, rest, now=NOW + 59)
     with pytest.raises(deadline.DeadlineError):
         deadline.check_start(step, latest, cost, rest, now=NOW + 61)
+
+
+def test_a_step_is_priced_by_its_own_runs_records_on_other_tasks_before_every_runs():
+    """timing.step_cost: the same run name's steps with its label (the same recipe on other tasks) come before
+    every run's with that label, which mixes recipes of other sizes."""
+    from readjax.lab.timing import step_cost
+
+    train = Step("train", "put_rubbish", "train read", ["python", "-m", "experiments.train", "--name", "read_s2"],
+                 made=lambda: False)
+    prior = {"label": {"train read": [2000.0, 4000.0]}, "kind": {}, "run": {"read_s2: train read": [4300.0, 4500.0]}}
+    assert step_cost(train, {}, {}, prior) == 4400.0
+    other = Step("train", "put_rubbish", "train read", ["python", "-m", "experiments.train", "--name", "read_v2"],
+                 made=lambda: False)
+    assert step_cost(other, {}, {}, prior) == 3000.0
+    assert step_cost(train, {"train read": [100.0]}, {}, prior) == 100.0  # this grid's own come first

@@ -517,3 +517,21 @@ def test_what_a_step_asks_of_a_node(tmp_path):
     ray_resources.check_fits(mine, ["evaluate"], [node])
     with pytest.raises(PipelineError, match=r"a train step asks \(CPU 1, GPU 0.5, memory 1.5 GiB\).*--resources train:"):
         ray_resources.check_fits(mine, ["evaluate", "train"], [node, {"Alive": False, "Resources": {"GPU": 1.0}}])
+
+
+def test_steps_go_to_free_cpus_in_the_grids_order_and_a_failed_steps_users_are_not_run():
+    """ray_grid.next_steps: the first ready steps in the grid's order (a later task's data waits while an earlier
+    task has a ready step), as many as CPUs are free; the steps needing a failed step, directly or not, leave."""
+    # task A: 0 data -> 1 train -> 2 evaluate; task B: 3 data -> 4 train -> 5 evaluate
+    needs = {0: [], 1: [0], 2: [1], 3: [], 4: [3], 5: [4]}
+    waiting = [0, 1, 2, 3, 4, 5]
+    assert ray_grid.next_steps(waiting, needs, set(), set(), 1) == ([0], [])
+    assert ray_grid.next_steps(waiting, needs, set(), set(), 2) == ([0, 3], [])
+    waiting = [1, 2, 3, 4, 5]  # A's data finished: A's training goes before B's data
+    assert ray_grid.next_steps(waiting, needs, {0}, set(), 1) == ([1], [])
+    assert ray_grid.next_steps(waiting, needs, {0}, set(), 0) == ([], [])
+    waiting = [2, 3, 4, 5]
+    go, unrunnable = ray_grid.next_steps(waiting, needs, {0}, {1}, 2)  # A's training failed
+    assert go == [3] and unrunnable == [(2, [1])] and waiting == [3, 4, 5]  # the caller takes out what goes
+    waiting = [4, 5]  # B's data failed: its training and, through it, its evaluation are not run
+    assert ray_grid.next_steps(waiting, needs, set(), {3}, 2) == ([], [(4, [3]), (5, [4])]) and waiting == []

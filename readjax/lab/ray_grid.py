@@ -1,20 +1,21 @@
 """The steps of a grid or a sweep on Ray: each step one Ray task, on whichever node has what it asks.
 
 :func:`run_on_ray` starts an embedded Ray on this machine (no address: as many steps at once as its
-CPUs allow) or joins a cluster (``address``, or the ``RAY_ADDRESS`` variable), and submits every step
-not yet done as a task declaring what it needs (:data:`STEP_RESOURCES`: a CPU each, a share of a GPU for
-a training where the cluster has GPUs, memory: :mod:`readjax.lab.ray_resources`), its dependencies the tasks of the steps it ``needs``
-(their ObjectRefs): Ray starts it once they have finished, on any node. A task runs
-:func:`readjax.lab.steps.run_step` there: skipped if done by then, else its command, its output checked,
-its time recorded beside the results. What makes a step done stays on disk, so every node must see
-the grid's folders at the same paths (a shared folder: NFS, a mounted bucket; docs/cluster.md). A
-step whose worker or node is lost is retried by Ray (:data:`MAX_RETRIES`), on another node where one
-is left: the command dies with its worker, and a retry resumes what it left (or finds it done), so a
-lost node loses at most its steps in progress. A failed step fails the steps that need it, not the
-others: the grid runs on and names every failure at the end. With a ``deadline`` (a job's wall-clock
-limit), a step is not started where its expected time (:func:`readjax.lab.timing.step_cost`) would end it
-after the deadline, nor are the steps that need it: the cores go to the steps that fit, and a re-run
-goes on from there.
+CPUs allow) or joins a cluster (``address``, or the ``RAY_ADDRESS`` variable). It submits the steps not
+yet done in the grid's order (a task's data, its trainings, their evaluations, then the next task), each
+once the steps it ``needs`` have finished and a CPU of the cluster is free, as a Ray task declaring what
+it asks of a node (a CPU each, a share of a GPU for a training where the cluster has GPUs, memory:
+:mod:`readjax.lab.ray_resources`). So the cores finish one task before they spread over the next, where
+Ray left alone would interleave every task's ready steps (its queues are per kind of request) and a
+stopped grid would hold half-made tasks. A task runs :func:`readjax.lab.steps.run_step` on its node:
+skipped if done by then, else its command, its output checked, its time recorded beside the results.
+What makes a step done stays on disk, so every node must see the grid's folders at the same paths (a
+shared folder: NFS, a mounted bucket; docs/cluster.md). A step whose worker or node is lost is retried by
+Ray (:data:`MAX_RETRIES`), on another node where one is left: the command dies with its worker, and a
+retry resumes what it left (or finds it done), so a lost node loses at most its steps in progress. A
+failed step fails the steps that need it, not the others: the grid runs on and names every failure at
+the end. With a ``deadline`` (a job's wall-clock limit), a step is not started where it and the steps
+that need it would end after the deadline (:mod:`readjax.lab.deadline`), nor are those steps.
 """
 
 from __future__ import annotations
@@ -76,16 +77,13 @@ def _in_dependency_order(steps: list[Step]) -> list[int]:
     return order
 
 
-def _step_task(steps: list[Step], i: int, cwd: str, python: str, log_path, heartbeat: float, latest, cost,
-               rest, *needs) -> dict:
-    """One step as a Ray task, on whichever node runs it (``needs``: the results of the steps it needs,
-    there only so that Ray starts it after them), unless it would start after ``latest``
-    (:func:`check_start`). The grid's relative paths are read from ``cwd``, which every node must see; its
-    ``python`` commands run with this node's Python."""
+def _step_task(steps: list[Step], i: int, cwd: str, python: str, log_path, heartbeat: float) -> dict:
+    """One step as a Ray task, on whichever node runs it (submitted once the steps it needs have finished).
+    The grid's relative paths are read from ``cwd``, which every node must see; its ``python`` commands
+    run with this node's Python."""
     import ray
 
     step = steps[i]
-    check_start(step, latest, cost, rest)
     node, ip = ray.get_runtime_context().get_node_id(), ray.util.get_node_ip_address()
     if not os.path.isdir(cwd):
         raise PipelineError(f"{step.task}: `{step.label}`: the grid's folder {cwd} is not on node {ip}: every node "
@@ -146,45 +144,71 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
     slots = max(1, int(cluster.get("CPU", 1)))
     log(f"pipeline: {len(steps)} steps, {summary['skipped']} already done, {len(todo)} to run on Ray: "
         f"{len(nodes)} node(s), {cluster.get('CPU', 0):g} CPUs, {cluster.get('GPU', 0):g} GPUs")
-    shared, task, refs = ray.put(todo), _remote(), {}
+    shared, task = ray.put(todo), _remote()
     index = {id(s): i for i, s in enumerate(todo)}
     needs = {i: [index[id(n)] for n in s.needs if id(n) in index] for i, s in enumerate(todo)}
     starts = latest_starts(todo, needs, deadline, prior, slots)
-    for i in _in_dependency_order(todo):
-        s = todo[i]
-        path = None if log_dir is None else step_log_path(log_dir, s)
-        refs[i] = task.options(**demands[s.kind], max_retries=MAX_RETRIES, name=f"{s.task}: {s.label}").remote(
-            shared, i, os.getcwd(), sys.executable, path, heartbeat, *starts[i],
-            *[refs[n] for n in needs[i]])
-    pending = {ref: i for i, ref in refs.items()}
+    waiting, running = _in_dependency_order(todo), {}  # not yet submitted (in order); ref -> index
     finished, failed, failures, late = set(), set(), [], set()
     by_kind: dict[str, list[float]] = {}
     by_label: dict[str, list[float]] = {}
     t_start = time.time()
+
+    def not_run(i: int, lost: list[int]) -> None:
+        failed.add(i)
+        if set(lost) <= late:
+            late.add(i)
+            return
+        why = f"not run: it needs `{todo[lost[0]].label}`, which failed"
+        failures.append(f"{todo[i].task}: `{todo[i].label}` {why}")
+        log(f"failed  {todo[i].task}: {todo[i].label} ({why})")
+
+    def submit() -> None:
+        """The steps :func:`next_steps` gives, each unless it would end after the deadline (then again, as
+        that frees a CPU and fails the steps that need it)."""
+        blocked = True
+        while blocked:
+            blocked = False
+            go, unrunnable = next_steps(waiting, needs, finished, failed, slots - len(running))
+            for i, lost in unrunnable:
+                not_run(i, lost)
+            for i in go:
+                waiting.remove(i)
+                try:
+                    check_start(todo[i], *starts[i])
+                except DeadlineError:
+                    if not late:
+                        log(f"deadline: steps that would end after {stamp(deadline)} are not started (the first: "
+                            f"{todo[i].task}: {todo[i].label})")
+                    failed.add(i)
+                    late.add(i)
+                    blocked = True
+                    continue
+                s = todo[i]
+                path = None if log_dir is None else step_log_path(log_dir, s)
+                ref = task.options(**demands[s.kind], max_retries=MAX_RETRIES, name=f"{s.task}: {s.label}").remote(
+                    shared, i, os.getcwd(), sys.executable, path, heartbeat)
+                running[ref] = i
+
     try:
-        while pending:
-            ready, _ = ray.wait(list(pending), num_returns=1, timeout=heartbeat)
+        submit()
+        while running:
+            ready, _ = ray.wait(list(running), num_returns=1, timeout=heartbeat)
             if not ready:
-                log(_running_line(todo, pending.values(), needs, finished, by_label, by_kind, prior, slots, t_start))
+                log(_running_line(todo, running.values(), waiting, needs, finished, by_label, by_kind, prior, slots,
+                                  t_start))
                 continue
-            i = pending.pop(ready[0])
+            i = running.pop(ready[0])
             step = todo[i]
             try:
                 outcome = ray.get(ready[0])
-            except Exception as e:  # noqa: BLE001  the step's own error, or one of a step it needs
+            except Exception as e:  # noqa: BLE001  the step's own error, or how Ray lost it
                 failed.add(i)
-                lost_at = [n for n in needs[i] if n in failed or _errored(ray, refs[n])]
-                if isinstance(getattr(e, "cause", None), DeadlineError) or (lost_at and set(lost_at) <= late):
-                    if not late:
-                        log(f"deadline: steps that would end after {stamp(deadline)} are not started (the first: "
-                            f"{step.task}: {step.label})")
-                    late.add(i)
-                    continue
-                lost = [todo[n].label for n in lost_at]
-                why = f"not run: it needs `{lost[0]}`, which failed" if lost else _reason(e)
-                failures.append(why if isinstance(getattr(e, "cause", None), PipelineError) and not lost
+                why = _reason(e)
+                failures.append(why if isinstance(getattr(e, "cause", None), PipelineError)
                                 else f"{step.task}: `{step.label}` {why}")
-                log(f"failed  {step.task}: {step.label}" + (f" ({why})" if lost else ""))
+                log(f"failed  {step.task}: {step.label}")
+                submit()
                 continue
             finished.add(i)
             summary["nodes"][(step.task, step.label)] = outcome["node"]
@@ -193,18 +217,19 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
             if not outcome["ran"]:
                 summary["skipped"] += 1
                 log(f"skipped {step.task}: {step.label} ({outcome['status']})")
-                continue
-            summary["ran"] += 1
-            by_kind.setdefault(step.kind, []).append(outcome["seconds"])
-            by_label.setdefault(step.label, []).append(outcome["seconds"])
-            left = eta([todo[j] for j in pending.values()], by_label, by_kind, prior)
-            log(f"[{len(finished) + len(failed)}/{len(todo)}] done {step.task}: {step.label} in "
-                f"{hms(outcome['seconds'])} on node {outcome['ip']} {outcome['node'][:8]} (elapsed "
-                f"{hms(time.time() - t_start)}{', ETA ' + hms(left / slots) if left is not None else ''})")
+            else:
+                summary["ran"] += 1
+                by_kind.setdefault(step.kind, []).append(outcome["seconds"])
+                by_label.setdefault(step.label, []).append(outcome["seconds"])
+                left = eta([todo[j] for j in (*waiting, *running.values())], by_label, by_kind, prior)
+                log(f"[{len(finished) + len(failed)}/{len(todo)}] done {step.task}: {step.label} in "
+                    f"{hms(outcome['seconds'])} on node {outcome['ip']} {outcome['node'][:8]} (elapsed "
+                    f"{hms(time.time() - t_start)}{', ETA ' + hms(left / slots) if left is not None else ''})")
+            submit()
     except KeyboardInterrupt:  # Ctrl-C or `kill` (the CLI's SIGTERM): stop the steps under way with the grid
-        for ref in pending:
+        for ref in running:
             ray.cancel(ref)
-        ray.wait(list(pending), num_returns=len(pending), timeout=60)
+        ray.wait(list(running), num_returns=len(running), timeout=60)
         raise
     summary["seconds"] = {k: sum(v) for k, v in by_kind.items()}
     if late:
@@ -225,25 +250,28 @@ def _reason(error: Exception) -> str:
     return f"failed in Ray (a lost worker or node is retried {MAX_RETRIES} times): {type(error).__name__}: {error}"
 
 
-def _errored(ray, ref) -> bool:
-    """Whether a finished task's result is an error (False while it runs)."""
-    try:
-        ray.get(ref, timeout=0)
-    except ray.exceptions.GetTimeoutError:
-        return False
-    except Exception:  # noqa: BLE001
-        return True
-    return False
+def next_steps(waiting: list[int], needs: dict[int, list[int]], finished: set[int], failed: set[int],
+               free: int) -> tuple[list[int], list[tuple[int, list[int]]]]:
+    """(the first ``free`` steps of ``waiting`` whose needs have all finished, in its order; the steps of
+    ``waiting`` that need a failed step, each with the failed steps it needs, and any step that needs one
+    of those, taken out of ``waiting``). ``waiting`` is in dependency order."""
+    go, unrunnable, lost_now = [], [], set()
+    for i in list(waiting):
+        lost = [n for n in needs[i] if n in failed or n in lost_now]
+        if lost:
+            waiting.remove(i)
+            unrunnable.append((i, lost))
+            lost_now.add(i)
+        elif len(go) < free and all(n in finished for n in needs[i]):
+            go.append(i)
+    return go, unrunnable
 
 
-def _running_line(todo, pending, needs, finished, by_label, by_kind, prior, slots: int, t_start: float) -> str:
-    """The periodic line: the steps whose needs have all finished (running, or waiting for a free node),
-    with how far each has got (a training: its stages' steps), and the ETA of the rest."""
-    now, parts, waiting = time.time(), [], 0
-    for i in pending:
-        if not all(n in finished for n in needs[i]):
-            waiting += 1
-            continue
+def _running_line(todo, running, waiting, needs, finished, by_label, by_kind, prior, slots: int, t_start: float) -> str:
+    """The periodic line: the steps under way, with how far each has got (a training: its stages' steps),
+    how many are ready for a free CPU and how many wait for other steps, and the ETA of the rest."""
+    parts = []
+    for i in running:
         step, how_far = todo[i], ""
         if step.progress is not None:
             try:
@@ -251,6 +279,7 @@ def _running_line(todo, pending, needs, finished, by_label, by_kind, prior, slot
             except (OSError, ValueError, KeyError):  # a record half-written: the next line will have it
                 pass
         parts.append(f"{step.task}: {step.label}{how_far}")
-    left = eta([todo[i] for i in pending], by_label, by_kind, prior)
-    return (f"under way or ready  {'; '.join(parts)}  (elapsed {hms(now - t_start)}, {waiting} waiting for "
-            f"other steps{', ETA ' + hms(left / slots) if left is not None else ''})")
+    ready = sum(all(n in finished for n in needs[i]) for i in waiting)
+    left = eta([todo[i] for i in (*running, *waiting)], by_label, by_kind, prior)
+    return (f"under way  {'; '.join(parts)}  (elapsed {hms(time.time() - t_start)}, {ready} ready for a free CPU, "
+            f"{len(waiting) - ready} waiting for other steps{', ETA ' + hms(left / slots) if left is not None else ''})")

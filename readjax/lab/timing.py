@@ -160,14 +160,17 @@ def timing_entries(results: str | Path) -> dict[str, list[tuple[str, dict]]]:
 
 
 def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
-    """Seconds of steps finished before (:func:`timing_records`: other runs, sessions and
-    machines): {"label": {...}, "kind": {...}}, for the ETA before this run has timed a step of its
-    own."""
-    prior: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}}
-    for steps in timing_records(results).values():
-        for label, st in steps.items():
+    """Seconds of steps finished before (:func:`timing_entries`: other runs, sessions and machines, every
+    run of a step): {"label": {...}, "kind": {...}, "run": {"<run>: <label>": ...}}, for the ETA before
+    this run has timed a step of its own; "run" holds the steps of a named run (the same recipe's
+    training on other tasks prices it better than every recipe's)."""
+    prior: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}, "run": {}}
+    for entries in timing_entries(results).values():
+        for label, st in entries:
             prior["label"].setdefault(label, []).append(st["seconds"])
             prior["kind"].setdefault(st["kind"], []).append(st["seconds"])
+            if st.get("run"):
+                prior["run"].setdefault(f"{st['run']}: {label}", []).append(st["seconds"])
     return prior
 
 
@@ -184,7 +187,8 @@ def step_cost(step, by_label: dict[str, list[float]], by_kind: dict[str, list[fl
     """One step's expected seconds: its own ``seconds_left`` where it has one (a training under way:
     its pace times the steps to its cap), else the mean time of the finished steps most like it, the
     first found of: this run's steps with its label (the same step on another task: "train read",
-    "evaluate read --N 100"), earlier runs' with its label (``prior``), this run's of its kind,
+    "evaluate read --N 100"), earlier runs' of the same run name with its label (``prior["run"]``: the
+    same recipe on other tasks), earlier runs' with its label (``prior``), this run's of its kind,
     earlier runs' of its kind, and this run's or earlier runs' of any kind. None before anything is known."""
     if step.seconds_left is not None:
         try:
@@ -195,8 +199,9 @@ def step_cost(step, by_label: dict[str, list[float]], by_kind: dict[str, list[fl
             return own
     prior = prior or {"label": {}, "kind": {}}
     mean = lambda v: sum(v) / len(v)  # noqa: E731
-    for table, key in ((by_label, step.label), (prior["label"], step.label), (by_kind, step.kind),
-                       (prior["kind"], step.kind)):
+    run = step.run_name() if hasattr(step, "run_name") else None
+    for table, key in ((by_label, step.label), (prior.get("run", {}), f"{run}: {step.label}"),
+                       (prior["label"], step.label), (by_kind, step.kind), (prior["kind"], step.kind)):
         if table.get(key):
             return mean(table[key])
     known = [x for v in (*by_kind.values(), *prior["kind"].values()) for x in v]
