@@ -176,10 +176,9 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
                 waiting.remove(i)
                 try:
                     check_start(todo[i], *starts[i])
-                except DeadlineError:
-                    if not late:
-                        log(f"deadline: steps that would end after {stamp(deadline)} are not started (the first: "
-                            f"{todo[i].task}: {todo[i].label})")
+                except DeadlineError as e:
+                    if not late:  # the first says why (its price), the rest are counted at the end
+                        log(f"deadline: steps that would end after {stamp(deadline)} are not started; the first: {e}")
                     failed.add(i)
                     late.add(i)
                     blocked = True
