@@ -5,6 +5,7 @@
                                         MJX/C trajectory parity
   python -m experiments.bench planner  READ planner latency (see its --help)
   python -m experiments.bench train    READ's two train steps timed, by parts, and profiled
+  python -m experiments.bench malloc   READ's train steps under glibc's malloc and readjax's tuning
 
 Results are printed and written as JSON (--out).
 """
@@ -16,7 +17,7 @@ import json
 import sys
 from pathlib import Path
 
-from experiments import _cli, bench_train
+from experiments import _cli, bench_malloc, bench_train
 from readjax.lab.bench_compare import original_ratios, run_original, slower_than
 from readjax.lab.bench_planner import bench_planner
 from readjax.lab.bench_sim import bench_sim
@@ -34,6 +35,12 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--repeats", type=_cli.positive_int, default=3)
     s.add_argument("--c-episodes", type=_cli.positive_int, default=8, help="episodes replayed in C MuJoCo")
     s.add_argument("--out", default="runs/bench/sim.json")
+    m = sub.add_parser("malloc", help="READ's train steps: glibc's malloc as it is vs readjax's tuning",
+                       description=bench_malloc.__doc__, formatter_class=_cli.HelpFormatter)
+    m.add_argument("--steps", type=_cli.positive_int, default=20, help="timed steps per stage and process")
+    m.add_argument("--batch", type=_cli.positive_int, default=32, help="batch size (the cpu preset trains at 32)")
+    m.add_argument("--rounds", type=_cli.positive_int, default=2, help="processes per setting, in turn")
+    m.add_argument("--out", default="runs/bench/malloc.json")
     pl = sub.add_parser("planner", help="planner latency (READ)", formatter_class=_cli.HelpFormatter)
     presets = sorted(config.preset_names())
     pl.add_argument("--presets", nargs="+", default=list(presets), choices=presets)
@@ -109,6 +116,9 @@ def main(argv=None) -> int | None:
 
         args.tasks = list(tasks.names()) if args.tasks == ["all"] else [tasks.canonical_name(t) for t in args.tasks]
         write_json(bench_sim(args), out)
+        return None
+    if args.what == "malloc":
+        write_json(bench_malloc.bench_malloc(args), out)
         return None
     if args.what == "train":
         previous = read_compare(args.compare, "train", "parts")

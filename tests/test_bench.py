@@ -134,3 +134,27 @@ def test_planner_benchmark_runs_end_to_end_and_compares_with_itself(tmp_path):
     assert {"encode_ms", "retrieve_ms", "refine_N1_ms", "decode_ik_ms"} <= set(rec["parts"][0])
     assert _cli.run(main, argv + ["--out", str(tmp_path / "again.json"), "--compare", str(out),
                                   "--slower", "1000"]) == 0
+
+
+def test_the_malloc_benchmark_runs_each_setting_in_turn_and_compares_parameters(monkeypatch):
+    """Each setting runs ``rounds`` times, alternating; the row is each setting's median and the ratio;
+    parameters count as the same only if every process's hash agrees."""
+    import argparse
+
+    from experiments import bench_malloc
+
+    order, ms = [], {"system": [120.0, 140.0], "tuned": [60.0, 80.0]}
+
+    def run_setting(setting, steps, batch):
+        order.append(setting)
+        k = sum(s == setting for s in order) - 1
+        sha = "b" if setting == "tuned" and k == 1 else "a"
+        return {st: {"ms": ms[setting][k], "faults": 10.0, "sys_s": 0.01, "params_sha256": sha if st == "read" else "a"}
+                for st in ("vae", "read")}
+
+    monkeypatch.setattr(bench_malloc, "run_setting", run_setting)
+    out = bench_malloc.bench_malloc(argparse.Namespace(rounds=2, steps=3, batch=4))
+    assert order == ["system", "tuned", "system", "tuned"]
+    vae, read = out["stages"]
+    assert vae["system"]["ms"] == 130.0 and vae["tuned"]["ms"] == 70.0 and vae["speedup"] == pytest.approx(1.86)
+    assert vae["same_parameters"] and not read["same_parameters"]

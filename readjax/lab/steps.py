@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from readjax import _runtime
 from readjax.lab.timing import eta, hms, load_average, record_piece, record_timing
 
 
@@ -146,14 +147,14 @@ def launch(argv: list[str], log_path: Path | None = None, heartbeat: float = 600
     this process's own). On Linux the child is told to die with this process (``PR_SET_PDEATHSIG``):
     a Ray worker lost with its node takes its step's command with it, so a retry elsewhere never runs
     beside it. ``on_beat(seconds, cpu_seconds)`` every ``heartbeat`` seconds while it runs; ``env``:
-    variables set for it. Any exception here (KeyboardInterrupt) stops the child before it is raised."""
+    variables set for it, beside glibc's malloc tuning (``readjax._runtime.MALLOC_TUNABLES``). Any exception here (KeyboardInterrupt) stops the child before it is raised."""
     out = None
     if log_path is not None:
         log_path.parent.mkdir(parents=True, exist_ok=True)
         out = open(log_path, "a")
     parent = os.getpid()
     proc = subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT if out else None,
-                            env=None if env is None else {**os.environ, **env},
+                            env=_runtime.with_malloc_tunables({**os.environ, **(env or {})}),
                             preexec_fn=(lambda: _die_with(parent)) if sys.platform == "linux" else None)
     t0 = time.time()
     try:
