@@ -43,7 +43,7 @@ def commands(phases, extra=(), dry_run: bool = False) -> list[list[str]]:
     from readjax.lab.grid_plan import pipeline_argvs
 
     argvs = pipeline_argvs()
-    extra = [a for a in extra if a != "--"]
+    extra = list(extra)[1:] if list(extra)[:1] == ["--"] else list(extra)  # the separator, not a later "--"
     return [[sys.executable, "-m", "experiments.pipeline", *argvs[ph], *extra, *(["--dry-run"] if dry_run else [])]
             for ph in phases]
 

@@ -87,6 +87,10 @@ def test_main_grid_prints_one_pipeline_command_per_phase_in_order(phases, capsys
     cmds = main_grid.commands(phases, ["--", "--ray-address", "h:1"], dry_run=True)
     assert all(c[:3] == [sys.executable, "-m", "experiments.pipeline"] and c[-3:] == ["--ray-address", "h:1", "--dry-run"]
                for c in cmds)
+    # only the separator is dropped: a later "--" is an argument of the pipeline's
+    cmd = main_grid.commands(["A"], ["--", "--set", "--"])[0]
+    assert cmd[-2:] == ["--set", "--"] and cmd.count("--") == 1
+    assert main_grid.commands(["A"], ["--deadline", "+1h"])[0][-2:] == ["--deadline", "+1h"]
 
 
 def test_a_sigterm_to_main_grid_goes_on_to_the_running_phase():
