@@ -72,6 +72,7 @@ def test_goals_met_and_missed_by_the_numbers():
     assert goals["READ Avg12 ≥ 85"]["verdict"] == "met" and goals["READ Avg12 ≥ 85"]["measured"] == "90.0§"
     vs = goals["READ N = 100 above Deterministic, pooled"]
     assert vs["verdict"] == "met" and vs["measured"].startswith("+144 / -0, p=")  # 24 pairs x 6 episodes
+    assert vs["measured"].endswith(", 24 pairs; 90.0 / 60.0 %")  # each side's success over the pairs used
     assert vs["so_far"] == "24 of 24 task x training pairs"
     ow = goals["OW: refinement above retrieval"]
     assert ow["verdict"] == "met" and ow["measured"].startswith("+28 / -0")  # 14 episodes in each of 2 pairs

@@ -23,7 +23,8 @@ from readjax import tasks
 from readjax.lab import main_table as mt
 from readjax.lab import main_table_seeds as seeds
 from readjax.lab import paper
-from readjax.lab.paired import pool, sign_test_p
+from readjax.lab import paired
+from readjax.lab.paired import sign_test_p
 
 AVG_GOALS = {"Avg12": 85.0, "Avg16": 70.0}
 # where the paper's READ at N = 100 (Table 7 A) rose far above its retrieval alone (Table 5, N = 0):
@@ -47,16 +48,15 @@ def paired_verdict(wins: int, losses: int, complete: bool) -> str:
 
 
 def pooled(pairs: list[tuple[dict, dict]]) -> tuple[int, int, int, str]:
-    """(wins, losses, pairs used, text) of result pairs (a, b) pooled on their common episodes: the
-    text ``+w / -l, p=... (k pairs); a / b %`` with the success of each side over the pairs used, or
-    ``–`` where no pair ran the same episodes."""
-    wins, losses, left_out = pool(pairs)
+    """(wins, losses, pairs used, text) of result pairs (a, b) pooled on their common episodes
+    (:func:`paired.pooled`): the text ``+w / -l, p=..., k pairs; a / b %`` with the success of each
+    side over the pairs used, or ``–`` where no pair ran the same episodes."""
+    wins, losses, left_out, text = paired.pooled(pairs)
     used = [pair for k, pair in enumerate(pairs) if k not in left_out]
     if not used:
-        return wins, losses, 0, "–"
+        return wins, losses, 0, text
     a, b = (100 * sum(pair[i]["success_rate"] for pair in used) / len(used) for i in (0, 1))
-    return wins, losses, len(used), (f"+{wins} / -{losses}, p={sign_test_p(wins, losses):.2g} ({len(used)} "
-                                     f"pair{'s' if len(used) > 1 else ''}); {a:.1f} / {b:.1f} %")
+    return wins, losses, len(used), f"{text}; {a:.1f} / {b:.1f} %"
 
 
 def average_goals(trainings: seeds.Trainings, plan: Plan) -> list[dict]:

@@ -23,7 +23,7 @@ import numpy as np
 from readjax import tasks
 from readjax.lab import main_table as mt
 from readjax.lab import paper
-from readjax.lab.paired import pool, sign_test_p
+from readjax.lab import paired
 from readjax.lab.result_record import is_eval
 from readjax.tables import of_suite, success_chart, suite_note
 
@@ -132,17 +132,14 @@ def spread(mean: float, lo: float, hi: float, k: int, total: int) -> str:
 
 def pooled(pairs: list[tuple[str, dict, dict]], what: str, skipped: list[str]) -> str:
     """``+wins / -losses, p=..., k pairs``: one exact McNemar test over the discordant episodes of
-    every pair (label, a, b) run on the same test episodes; a pair whose episodes differ is left out
-    and said in ``skipped``."""
-    wins, losses, left_out = pool([(a, b) for _, a, b in pairs])
+    every pair (label, a, b) run on the same test episodes (:func:`paired.pooled`); a pair whose
+    episodes differ is left out and said in ``skipped``."""
+    *_, left_out, text = paired.pooled([(a, b) for _, a, b in pairs])
     for k in left_out:
         label, a, b = pairs[k]
         skipped.append(f"{label}, {what}: not the same test episodes (the seeds of `{a['_file']}` and "
                        f"`{b['_file']}` differ)")
-    used = len(pairs) - len(left_out)
-    if not used:
-        return "–"
-    return f"+{wins} / -{losses}, p={sign_test_p(wins, losses):.2g}, {used} pair{'s' if used > 1 else ''}"
+    return text
 
 
 def paired_lines(trainings: Trainings) -> list[str]:

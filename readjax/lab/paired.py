@@ -59,7 +59,7 @@ def same_episodes(a: dict, b: dict) -> bool:
 def pool(pairs) -> tuple[int, int, list[int]]:
     """(wins, losses, left out): the discordant episodes of result pairs (a, b), summed over the pairs
     run on the same episodes (``same_episodes``); ``left out`` indexes the pairs that were not. The
-    pooled test is ``sign_test_p(wins, losses)``."""
+    pooled test is ``sign_test_p(wins, losses)``; :func:`pooled` formats it."""
     wins = losses = 0
     left_out = []
     for k, (a, b) in enumerate(pairs):
@@ -71,10 +71,23 @@ def pool(pairs) -> tuple[int, int, list[int]]:
     return wins, losses, left_out
 
 
+def sign_text(wins: int, losses: int) -> str:
+    """``+wins / -losses, p=...``: the discordant episodes and the exact two-sided test on them."""
+    return f"+{wins} / -{losses}, p={sign_test_p(wins, losses):.2g}"
+
+
+def pooled(pairs) -> tuple[int, int, list[int], str]:
+    """(wins, losses, left out, text) of result pairs pooled as :func:`pool` does: the text is
+    ``+w / -l, p=..., k pairs`` over the k pairs used, ``–`` where none ran the same episodes."""
+    wins, losses, left_out = pool(pairs)
+    used = len(pairs) - len(left_out)
+    text = f"{sign_text(wins, losses)}, {used} pair{'s' if used > 1 else ''}" if used else "–"
+    return wins, losses, left_out, text
+
+
 def discordant(a: dict, b: dict) -> str:
     """``+wins / -losses, p=...`` of result ``a`` against ``b`` on the episodes both ran."""
     pair = paired_outcomes(a, b)
     if pair is None:
         return "no common episodes"
-    wins, losses, p = counts(*pair)
-    return f"+{wins} / -{losses}, p={p:.2g}"
+    return sign_text(*counts(*pair)[:2])
