@@ -49,7 +49,9 @@ def parser() -> argparse.ArgumentParser:
                         "trainings that have the task with their range (n=k where only k have it), Avg12 / Avg16 "
                         "the mean and range of each training's own average, every training's row below, and the "
                         "paired tests pooled over the trainings (READ's i-th against Deterministic's i-th, in "
-                        "the lists' order; N = 100 against N = 0 of the same training)")
+                        "the lists' order; N = 100 against N = 0 of the same training); then the goals held against the paper's "
+                        "READ (Avg12 / Avg16, READ above Deterministic, refinement above retrieval), each met, "
+                        "missed or pending")
     p.add_argument("--paper-recipe", default=None, metavar="RUNS",
                    help="with --main: a row of READ trained with the paper's recipe (every cpu-preset departure "
                         "reverted; run(s) of the pipeline's --fixed-refinement, comma-separated for several "
@@ -78,10 +80,8 @@ def main(argv=None) -> None:
         for page in pages.regenerate("."):
             print(f"wrote {page}")
         return
-    from readjax.lab import main_table_seeds
+    from readjax.lab import claims, grid_goals, main_table_seeds
     from readjax.lab.report import write_report
-
-    from readjax.lab import claims
 
     if args.claims is not None and any("=" not in c for c in args.claims):
         raise ValueError(f"--claims takes ROLE=RUN pairs, got {args.claims}")
@@ -93,7 +93,8 @@ def main(argv=None) -> None:
         read_run, det_run = args.main
         sections.append(lambda results, chart: main_table_seeds.section(results, read_run, det_run, chart,
                                                                 preset_name=args.main_preset,
-                                                                recipe_run=args.paper_recipe))
+                                                                recipe_run=args.paper_recipe,
+                                                                goals=grid_goals.lines))
     claims_plot = Path(args.out).with_name(Path(args.out).stem + "_claims.png")
     if args.claims is not None:
         sections.append(lambda results, chart: claims.lines(results, roles, preset_name=args.main_preset,

@@ -266,11 +266,16 @@ def lines(results: list[dict], read_runs: list[str], det_runs: list[str], chart:
 
 
 def section(results: list[dict], read_run: str, det_run: str, chart: Path | None = None, preset_name: str = "cpu",
-            suite: int = tasks.SUITE_VERSION, recipe_run: str | None = None) -> list[str]:
+            suite: int = tasks.SUITE_VERSION, recipe_run: str | None = None,
+            goals: Callable[[Trainings], list[str]] | None = None) -> list[str]:
     """The main table section for ``experiments.report --main``: one run name per role
     (:func:`readjax.lab.main_table.lines`), or comma-separated names of several trainings per role (one
-    per ``train.seed``), or a paper's-recipe row (``recipe_run``, comma-separated too): :func:`lines`."""
+    per ``train.seed``), or a paper's-recipe row (``recipe_run``, comma-separated too): :func:`lines`.
+    ``goals``: lines drawn from the trainings (:func:`readjax.lab.grid_goals.lines`), after the table."""
+    refinement = mt.refinement_of(preset_name)
     if "," not in read_run and "," not in det_run and not recipe_run:
-        return mt.lines(results, read_run, det_run, chart, preset_name=preset_name, suite=suite)
+        out = mt.lines(results, read_run, det_run, chart, preset_name=preset_name, suite=suite)
+        return out + (goals(select_trainings(of_suite(results, suite), [read_run], [det_run], refinement)[0])
+                      if goals else [])
     return lines(of_suite(results, suite), split_runs(read_run), split_runs(det_run), chart, preset_name,
-                 mt.refinement_of(preset_name), suite, split_runs(recipe_run) if recipe_run else [])
+                 refinement, suite, split_runs(recipe_run) if recipe_run else [], goals=goals)
