@@ -229,3 +229,22 @@ def test_a_timing_record_names_its_run_and_suite_and_the_grid_cost_counts_its_ow
     # the per-label table of one suite's steps: this suite's records, none of an older suite's
     assert any(ln.startswith("| RT |") for ln in cost_table.cost_lines(tmp_path / "results", suite=tasks.SUITE_VERSION))
     assert cost_table.cost_lines(tmp_path / "results", suite=tasks.SUITE_VERSION - 1) == []
+
+
+def test_steps_are_priced_from_records_made_with_the_same_malloc_where_there_are_any(tmp_path):
+    """Records from before glibc's malloc was tuned (no "malloc" field: "system") price a step only
+    where no record of the same kind of process exists; either kind prices a key the other lacks."""
+    import json
+
+    from readjax.lab import timing
+
+    entry = lambda s, **kw: {"kind": "train", "seconds": s, "run": "read_s2", **kw}  # noqa: E731
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / timing.TIMING_FILE).write_text(json.dumps({"task": "a", "steps": {
+        "train read": entry(4000.0), "evaluate read": dict(entry(100.0), kind="evaluate")},
+        "repeats": {"train read": [entry(5000.0), entry(2500.0, malloc="tuned")]}}))
+    tuned, system = timing.prior_costs(tmp_path, "tuned"), timing.prior_costs(tmp_path, "system")
+    assert tuned["label"]["train read"] == [2500.0] and tuned["run"]["read_s2: train read"] == [2500.0]
+    assert system["label"]["train read"] == [4000.0, 5000.0] and tuned["kind"]["train"] == [2500.0]
+    assert tuned["label"]["evaluate read"] == [100.0]  # none tuned yet: every record
+    assert timing.malloc_setting({}) == "tuned" and timing.malloc_setting({"READJAX_MALLOC": "system"}) == "system"

@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
-from readjax import atomic_write, tasks
+from readjax import _runtime, atomic_write, tasks
 
 try:
     import fcntl
@@ -54,7 +54,8 @@ def _add_finished(record: dict, step, seconds: float, load: float | None, cpu_se
                   started: float | None) -> None:
     """:func:`record_timing`'s change to the task's timing record (in place)."""
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-             "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform(), **_whose(step)}
+             "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform(), "malloc": malloc_setting(),
+             **_whose(step)}
     earlier = record.get(UNFINISHED, {}).pop(step.label, {})
     earlier.pop(_piece_key(started), None)  # this run's own heartbeat piece: counted in ``seconds``
     if not record.get(UNFINISHED):
@@ -87,6 +88,14 @@ def record_piece(step, started: float, seconds: float, cpu_seconds: float | None
         record.setdefault(UNFINISHED, {}).setdefault(step.label, {})[_piece_key(started)] = piece
 
     _update_timing(step, add_piece)
+
+
+def malloc_setting(env=None) -> str:
+    """How the steps this process launches allocate: "tuned" (``readjax._runtime.MALLOC_TUNABLES``, what
+    :func:`readjax.lab.steps.launch` gives them) or "system" (``READJAX_MALLOC=system``). A record without
+    the field predates the tuning: "system" (READ's training steps ran 1.5-1.9x slower, BENCHMARKS 30)."""
+    env = os.environ if env is None else env
+    return "system" if env.get(_runtime.MALLOC_OPT_OUT) == "system" else "tuned"
 
 
 def _whose(step) -> dict:
@@ -159,19 +168,23 @@ def timing_entries(results: str | Path) -> dict[str, list[tuple[str, dict]]]:
     return out
 
 
-def prior_costs(results: str | Path) -> dict[str, dict[str, list[float]]]:
+def prior_costs(results: str | Path, malloc: str | None = None) -> dict[str, dict[str, list[float]]]:
     """Seconds of steps finished before (:func:`timing_entries`: other runs, sessions and machines, every
     run of a step): {"label": {...}, "kind": {...}, "run": {"<run>: <label>": ...}}, for the ETA before
     this run has timed a step of its own; "run" holds the steps of a named run (the same recipe's
-    training on other tasks prices it better than every recipe's)."""
-    prior: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}, "run": {}}
+    training on other tasks prices it better than every recipe's). Under each key, the records made with
+    this process's malloc setting (``malloc``, default :func:`malloc_setting`) where there are any, else all."""
+    malloc = malloc or malloc_setting()
+    same: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}, "run": {}}
+    every: dict[str, dict[str, list[float]]] = {"label": {}, "kind": {}, "run": {}}
     for entries in timing_entries(results).values():
         for label, st in entries:
-            prior["label"].setdefault(label, []).append(st["seconds"])
-            prior["kind"].setdefault(st["kind"], []).append(st["seconds"])
-            if st.get("run"):
-                prior["run"].setdefault(f"{st['run']}: {label}", []).append(st["seconds"])
-    return prior
+            keys = [("label", label), ("kind", st["kind"])] + ([("run", f"{st['run']}: {label}")] if st.get("run") else [])
+            for table, key in keys:
+                every[table].setdefault(key, []).append(st["seconds"])
+                if st.get("malloc", "system") == malloc:
+                    same[table].setdefault(key, []).append(st["seconds"])
+    return {table: {key: same[table].get(key) or values for key, values in every[table].items()} for table in every}
 
 
 def eta(remaining: list, by_label: dict[str, list[float]], by_kind: dict[str, list[float]],
