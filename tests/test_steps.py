@@ -119,13 +119,15 @@ def test_a_resumed_steps_record_adds_the_time_of_its_every_run(tmp_path):
     assert list(pieces) == ["resumed"]  # a step that starts over leaves no piece
     (first,) = pieces["resumed"].values()  # the heartbeat's pieces of one run: one, under its start
     assert first["seconds"] >= 0.7 and first["cpu_seconds"] > 0
-    for step in (resumed, restarted):
-        steps.run_step(step, heartbeat=0.2)
+    outcomes = [steps.run_step(step, heartbeat=0.2) for step in (resumed, restarted)]
     record = json.loads(_timing(tmp_path).read_text())
     assert timing.UNFINISHED not in record  # this run's own heartbeat pieces are not counted twice
     done, again = record["steps"]["resumed"], record["steps"]["restarted"]
     assert done["pieces"] == 2 and "pieces" not in again  # the restarted one's lost run is not its cost
     assert done["seconds"] >= first["seconds"] + 0.9 and done["cpu_seconds"] >= first["cpu_seconds"] + 0.9
+    # what prices the same step elsewhere is its whole cost, not its last run's (the outcome's seconds)
+    assert outcomes[0]["cost"] == done["seconds"] > outcomes[0]["seconds"] + 0.5
+    assert outcomes[1]["cost"] == again["seconds"]
 
 
 def test_the_in_order_runner_records_the_piece_of_a_stopped_resumed_step(tmp_path):

@@ -108,7 +108,8 @@ def run_step(step: Step, runner=None, log_path: Path | None = None, heartbeat: f
              env: dict | None = None) -> dict:
     """Run one step here, unless it is done (its output there, or nothing wants it: checked now, as
     the steps it needs have just finished): its command, then its ``after``, then ``made`` must hold;
-    its time goes to its task's timing record. Returns {"ran": bool, "status", "seconds"}.
+    its time goes to its task's timing record. Returns {"ran": bool, "status", "seconds"} and, for a step
+    that ran, "cost": its recorded seconds, every run of a resumed one (what prices it elsewhere).
 
     The command runs as a child process that dies with this one (:func:`launch`; output appended to
     ``log_path``, else on this process's own), every ``heartbeat`` seconds its run so far kept as a piece
@@ -137,8 +138,8 @@ def run_step(step: Step, runner=None, log_path: Path | None = None, heartbeat: f
         why = MISSING.get(step.kind, "its output check failed")
         raise PipelineError(f"{step.task}: `{step.label}` ran but its result is not there ({why})")
     seconds = time.time() - t0
-    record_timing(step, seconds, load, cpu, started=t0)
-    return {"ran": True, "status": "done", "seconds": seconds}
+    cost = record_timing(step, seconds, load, cpu, started=t0)
+    return {"ran": True, "status": "done", "seconds": seconds, "cost": cost}
 
 
 def launch(argv: list[str], log_path: Path | None = None, heartbeat: float = 600.0, on_beat=None,
@@ -242,8 +243,8 @@ def run_in_order(steps: list[Step], log: Callable[[str], None] = print, runner=N
             skipped += 1
             continue
         ran += 1
-        by_kind.setdefault(step.kind, []).append(outcome["seconds"])
-        by_label.setdefault(step.label, []).append(outcome["seconds"])
+        by_kind.setdefault(step.kind, []).append(outcome.get("cost", outcome["seconds"]))
+        by_label.setdefault(step.label, []).append(outcome.get("cost", outcome["seconds"]))
         left = eta(todo[k:], by_label, by_kind, prior)
         log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (done in {hms(outcome['seconds'])}, elapsed "
             f"{hms(time.time() - t_start)}{', ETA ' + hms(left) if left is not None else ''})")

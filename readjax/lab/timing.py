@@ -33,7 +33,7 @@ UNFINISHED = "unfinished"  # the timing file's pieces of steps that have not fin
 
 
 def record_timing(step, seconds: float, load: float | None, cpu_seconds: float | None = None,
-                  started: float | None = None) -> None:
+                  started: float | None = None) -> float:
     """Add a finished step's wall clock to its task's ``pipeline_timing.json`` (committed beside the
     results, read by ``experiments.report``): seconds, when, and the core count and load average of
     the machine that ran it when it started (2-core timings beside another job are not idle-machine
@@ -44,15 +44,19 @@ def record_timing(step, seconds: float, load: float | None, cpu_seconds: float |
     beside it nor a pause (a stopped process) inflates as they do the wall clock.
     A step that ``resumes`` adds the earlier runs' pieces (:func:`record_piece`) to its seconds and CPU
     seconds and counts its runs in ``pieces``; ``started`` (its run's start, ``time.time()``) tells this
-    run's own heartbeat piece from them."""
+    run's own heartbeat piece from them. Returns the seconds recorded: the step's whole cost, every
+    run of a resumed one (what prices the same step elsewhere), ``seconds`` where nothing is recorded."""
     if step.timing is None:
-        return
-    _update_timing(step, lambda record: _add_finished(record, step, seconds, load, cpu_seconds, started))
+        return seconds
+    total = [seconds]
+    _update_timing(step, lambda record: total.__setitem__(0, _add_finished(record, step, seconds, load,
+                                                                            cpu_seconds, started)))
+    return total[0]
 
 
 def _add_finished(record: dict, step, seconds: float, load: float | None, cpu_seconds: float | None,
-                  started: float | None) -> None:
-    """:func:`record_timing`'s change to the task's timing record (in place)."""
+                  started: float | None) -> float:
+    """:func:`record_timing`'s change to the task's timing record (in place); the step's recorded seconds."""
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
              "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform(), "malloc": malloc_setting(),
              **_whose(step)}
@@ -70,6 +74,7 @@ def _add_finished(record: dict, step, seconds: float, load: float | None, cpu_se
         record.setdefault("repeats", {}).setdefault(step.label, []).append(entry)
     else:
         record["steps"][step.label] = entry
+    return entry["seconds"]
 
 
 def record_piece(step, started: float, seconds: float, cpu_seconds: float | None) -> None:
