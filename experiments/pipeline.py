@@ -178,7 +178,8 @@ def dry_run(steps, prior, results) -> None:
     if todo and priced:
         print(f"to run: {todo} steps, about {timing.hms(total)} of work (divide by the steps a machine or "
               f"cluster runs at once), priced from the timing records under {results}: the same step on another "
-              f"task, else the mean of its kind (rough for a training of a recipe not timed yet); a training "
+              f"task (its CPU time where recorded, from records made with the same malloc setting where there are "
+              f"any), else the mean of its kind (rough for a training of a recipe not timed yet); a training "
               f"under way by its own pace to its step cap (an upper bound under the convergence rule)")
     elif todo:
         print(f"to run: {todo} steps (no timing records under {results} to price them yet)")

@@ -44,8 +44,8 @@ def record_timing(step, seconds: float, load: float | None, cpu_seconds: float |
     beside it nor a pause (a stopped process) inflates as they do the wall clock.
     A step that ``resumes`` adds the earlier runs' pieces (:func:`record_piece`) to its seconds and CPU
     seconds and counts its runs in ``pieces``; ``started`` (its run's start, ``time.time()``) tells this
-    run's own heartbeat piece from them. Returns the seconds recorded: the step's whole cost, every
-    run of a resumed one (what prices the same step elsewhere), ``seconds`` where nothing is recorded."""
+    run's own heartbeat piece from them. Returns the step's :func:`price` as recorded: its whole cost,
+    every run of a resumed one (what prices the same step elsewhere), ``seconds`` where nothing is recorded."""
     if step.timing is None:
         return seconds
     total = [seconds]
@@ -56,7 +56,7 @@ def record_timing(step, seconds: float, load: float | None, cpu_seconds: float |
 
 def _add_finished(record: dict, step, seconds: float, load: float | None, cpu_seconds: float | None,
                   started: float | None) -> float:
-    """:func:`record_timing`'s change to the task's timing record (in place); the step's recorded seconds."""
+    """:func:`record_timing`'s change to the task's timing record (in place); the entry's :func:`price`."""
     entry = {"kind": step.kind, "seconds": round(seconds, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
              "cpus": os.cpu_count(), "load_at_start": load, "platform": platform.platform(), "malloc": malloc_setting(),
              **_whose(step)}
@@ -74,7 +74,15 @@ def _add_finished(record: dict, step, seconds: float, load: float | None, cpu_se
         record.setdefault("repeats", {}).setdefault(step.label, []).append(entry)
     else:
         record["steps"][step.label] = entry
-    return entry["seconds"]
+    return price(entry)
+
+
+def price(entry: dict) -> float:
+    """What a recorded step costs a CPU slot: its CPU seconds where recorded, else its wall clock. The
+    wall clock of a step beside other work, or paused, or resumed across sessions, counts time it did
+    not use (a training recorded at 75 min of wall clock used 44 min of CPU); a step's process uses
+    about one core when the grid keeps every core busy, so its CPU time is its time in a slot."""
+    return entry.get("cpu_seconds") or entry["seconds"]
 
 
 def record_piece(step, started: float, seconds: float, cpu_seconds: float | None) -> None:
@@ -174,8 +182,8 @@ def timing_entries(results: str | Path) -> dict[str, list[tuple[str, dict]]]:
 
 
 def prior_costs(results: str | Path, malloc: str | None = None) -> dict[str, dict[str, list[float]]]:
-    """Seconds of steps finished before (:func:`timing_entries`: other runs, sessions and machines, every
-    run of a step): {"label": {...}, "kind": {...}, "run": {"<run>: <label>": ...}}, for the ETA before
+    """Seconds (:func:`price`) of steps finished before (:func:`timing_entries`: other runs, sessions and
+    machines, every run of a step): {"label": {...}, "kind": {...}, "run": {"<run>: <label>": ...}}, for the ETA before
     this run has timed a step of its own; "run" holds the steps of a named run (the same recipe's
     training on other tasks prices it better than every recipe's). Under each key, the records made with
     this process's malloc setting (``malloc``, default :func:`malloc_setting`) where there are any, else all."""
@@ -186,9 +194,9 @@ def prior_costs(results: str | Path, malloc: str | None = None) -> dict[str, dic
         for label, st in entries:
             keys = [("label", label), ("kind", st["kind"])] + ([("run", f"{st['run']}: {label}")] if st.get("run") else [])
             for table, key in keys:
-                every[table].setdefault(key, []).append(st["seconds"])
+                every[table].setdefault(key, []).append(price(st))
                 if st.get("malloc", "system") == malloc:
-                    same[table].setdefault(key, []).append(st["seconds"])
+                    same[table].setdefault(key, []).append(price(st))
     return {table: {key: same[table].get(key) or values for key, values in every[table].items()} for table in every}
 
 
