@@ -49,9 +49,9 @@ def parser() -> argparse.ArgumentParser:
                         "trainings that have the task with their range (n=k where only k have it), Avg12 / Avg16 "
                         "the mean and range of each training's own average, every training's row below, and the "
                         "paired tests pooled over the trainings (READ's i-th against Deterministic's i-th, in "
-                        "the lists' order; N = 100 against N = 0 of the same training); then the goals held against the paper's "
-                        "READ (Avg12 / Avg16, READ above Deterministic, refinement above retrieval), each met, "
-                        "missed or pending")
+                        "the lists' order; N = 100 against N = 0 of the same training); then the goals held "
+                        "against the paper's READ (Avg12 / Avg16, READ above Deterministic, refinement above "
+                        "retrieval), each met, missed or pending")
     p.add_argument("--paper-recipe", default=None, metavar="RUNS",
                    help="with --main: a row of READ trained with the paper's recipe (every cpu-preset departure "
                         "reverted; run(s) of the pipeline's --fixed-refinement, comma-separated for several "

@@ -79,11 +79,16 @@ MALLOC_OPT_OUT = "READJAX_MALLOC"  # =system: leave glibc's malloc as it is
 _REEXECED = "_READJAX_MALLOC_REEXEC"  # set in the restarted process: never restart twice
 
 
+def malloc_opted_out(env) -> bool:
+    """Whether ``env`` asks for glibc's malloc as it is (``READJAX_MALLOC=system``)."""
+    return env.get(MALLOC_OPT_OUT) == "system"
+
+
 def with_malloc_tunables(env) -> dict:
     """A copy of ``env`` whose GLIBC_TUNABLES holds :data:`MALLOC_TUNABLES`; a tunable the caller
     already set keeps the caller's value. Unchanged where ``READJAX_MALLOC=system``."""
     env = dict(env)
-    if env.get(MALLOC_OPT_OUT) == "system":
+    if malloc_opted_out(env):
         return env
     given = [t for t in env.get("GLIBC_TUNABLES", "").split(":") if t]
     names = {t.split("=", 1)[0] for t in given}

@@ -218,9 +218,8 @@ def _run(ray, steps, todo, summary, log, prior, log_dir, heartbeat, resources, o
                 log(f"skipped {step.task}: {step.label} ({outcome['status']})")
             else:
                 summary["ran"] += 1
-                cost = outcome.get("cost", outcome["seconds"])  # a resumed step: every run of it
-                by_kind.setdefault(step.kind, []).append(cost)
-                by_label.setdefault(step.label, []).append(cost)
+                by_kind.setdefault(step.kind, []).append(outcome["cost"])  # a resumed step: every run of it
+                by_label.setdefault(step.label, []).append(outcome["cost"])
                 left = eta([todo[j] for j in (*waiting, *running.values())], by_label, by_kind, prior)
                 log(f"[{len(finished) + len(failed)}/{len(todo)}] done {step.task}: {step.label} in "
                     f"{hms(outcome['seconds'])} on node {outcome['ip']} {outcome['node'][:8]} (elapsed "

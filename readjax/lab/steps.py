@@ -148,7 +148,8 @@ def launch(argv: list[str], log_path: Path | None = None, heartbeat: float = 600
     this process's own). On Linux the child is told to die with this process (``PR_SET_PDEATHSIG``):
     a Ray worker lost with its node takes its step's command with it, so a retry elsewhere never runs
     beside it. ``on_beat(seconds, cpu_seconds)`` every ``heartbeat`` seconds while it runs; ``env``:
-    variables set for it, beside glibc's malloc tuning (``readjax._runtime.MALLOC_TUNABLES``). Any exception here (KeyboardInterrupt) stops the child before it is raised."""
+    variables set for it, beside glibc's malloc tuning (``readjax._runtime.MALLOC_TUNABLES``). Any
+    exception here (KeyboardInterrupt) stops the child before it is raised."""
     out = None
     if log_path is not None:
         log_path.parent.mkdir(parents=True, exist_ok=True)
@@ -243,8 +244,8 @@ def run_in_order(steps: list[Step], log: Callable[[str], None] = print, runner=N
             skipped += 1
             continue
         ran += 1
-        by_kind.setdefault(step.kind, []).append(outcome.get("cost", outcome["seconds"]))
-        by_label.setdefault(step.label, []).append(outcome.get("cost", outcome["seconds"]))
+        by_kind.setdefault(step.kind, []).append(outcome["cost"])  # a resumed step: every run of it
+        by_label.setdefault(step.label, []).append(outcome["cost"])
         left = eta(todo[k:], by_label, by_kind, prior)
         log(f"[{k}/{len(todo)}] {step.task}: {step.label}  (done in {hms(outcome['seconds'])}, elapsed "
             f"{hms(time.time() - t_start)}{', ETA ' + hms(left) if left is not None else ''})")

@@ -48,10 +48,7 @@ def record_timing(step, seconds: float, load: float | None, cpu_seconds: float |
     every run of a resumed one (what prices the same step elsewhere), ``seconds`` where nothing is recorded."""
     if step.timing is None:
         return seconds
-    total = [seconds]
-    _update_timing(step, lambda record: total.__setitem__(0, _add_finished(record, step, seconds, load,
-                                                                            cpu_seconds, started)))
-    return total[0]
+    return _update_timing(step, lambda record: _add_finished(record, step, seconds, load, cpu_seconds, started))
 
 
 def _add_finished(record: dict, step, seconds: float, load: float | None, cpu_seconds: float | None,
@@ -107,8 +104,7 @@ def malloc_setting(env=None) -> str:
     """How the steps this process launches allocate: "tuned" (``readjax._runtime.MALLOC_TUNABLES``, what
     :func:`readjax.lab.steps.launch` gives them) or "system" (``READJAX_MALLOC=system``). A record without
     the field predates the tuning: "system" (READ's training steps ran 1.5-1.9x slower, BENCHMARKS 30)."""
-    env = os.environ if env is None else env
-    return "system" if env.get(_runtime.MALLOC_OPT_OUT) == "system" else "tuned"
+    return "system" if _runtime.malloc_opted_out(os.environ if env is None else env) else "tuned"
 
 
 def _whose(step) -> dict:
@@ -123,16 +119,18 @@ def _piece_key(started: float | None) -> str:
     return "" if started is None else datetime.fromtimestamp(started, timezone.utc).isoformat(timespec="microseconds")
 
 
-def _update_timing(step, change: Callable[[dict], None]) -> None:
+def _update_timing(step, change: Callable[[dict], object]):
     """One read-modify-write of the task's timing file: under its lock (:func:`_timing_locked`), and
     replacing the file whole, so a reader sees the old record or the new one, never a half-written file.
-    The temporary file is named by process and host: two nodes of a cluster may share a process id."""
+    The temporary file is named by process and host: two nodes of a cluster may share a process id.
+    Returns what ``change`` returns."""
     with _timing_locked(step.timing):
         f = step.timing
         record = json.loads(f.read_text()) if f.exists() else {"task": step.task, "steps": {}}
-        change(record)
+        result = change(record)
         atomic_write.write_text(f, json.dumps(record, indent=2),
                                 tmp_name=f"{f.name}.tmp{os.getpid()}.{socket.gethostname()}")
+    return result
 
 
 @contextmanager
